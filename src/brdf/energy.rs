@@ -40,11 +40,13 @@ pub struct EnergyQuadrature {
     pub radial_points: usize,
     /// Trapezoid points over the azimuth of wo for ring lobes.
     pub ring_points: usize,
+    /// Factor on `azimuth_points` for lobes whose support the horizon constraints cut.
+    pub cut_refinement: usize,
 }
 
 impl Default for EnergyQuadrature {
     fn default() -> Self {
-        Self { azimuth_points: 48, radial_points: 12, ring_points: 24 }
+        Self { azimuth_points: 48, radial_points: 12, ring_points: 24, cut_refinement: 4 }
     }
 }
 
@@ -70,12 +72,26 @@ pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrat
     if !(k2 > 0.0) {
         return (0.0, 0.0);
     }
+    let base = quad.azimuth_points.max(4);
+    let (a, b, cut) = lobe_albedo_azimuths(xi, lambda, wo, base, rule);
+    if cut {
+        // The constraints cut the lobe's support: the azimuthal integrand has kinks where the cut
+        // structure changes and the trapezoid rule converges only algebraically there. Refine.
+        let (a, b, _) = lobe_albedo_azimuths(xi, lambda, wo, base * quad.cut_refinement.max(1), rule);
+        return (a, b);
+    }
+    (a, b)
+}
+
+/// The integral with `n_phi` azimuths; the flag says whether a constraint cut the lobe's support.
+fn lobe_albedo_azimuths(xi: DVec3, lambda: f64, wo: DVec3, n_phi: usize, rule: &GaussLegendre) -> (f64, f64, bool) {
+    let k2 = wo.z;
     let t_max = srbf::support_cosine(lambda, 40.0).acos().max(1e-9);
     // Radial panels packed towards the peak (the integrand ~ t·exp(−λt²) peaks at t_max/√80).
     let panels = [0.0, 0.125 * t_max, 0.25 * t_max, 0.5 * t_max, t_max];
     let (e1, e2) = Frame::from_normal(xi).tangents();
     let (a1, a2) = (wo.dot(xi), xi.z);
-    let n_phi = quad.azimuth_points.max(4);
+    let mut cut_inside = false;
     let mut sum_a = 0.0;
     let mut sum_b = 0.0;
     let mut cuts: Vec<f64> = Vec::with_capacity(16);
@@ -104,6 +120,7 @@ pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrat
             }
         }
         cuts.retain(|&t| (0.0..=t_max).contains(&t));
+        cut_inside |= cuts.len() > panels.len();
         cuts.sort_by(f64::total_cmp);
         cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-15);
         for w in cuts.windows(2) {
@@ -135,7 +152,7 @@ pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrat
         }
     }
     let dphi = 2.0 * PI / n_phi as f64;
-    (sum_a * dphi, sum_b * dphi)
+    (sum_a * dphi, sum_b * dphi, cut_inside)
 }
 
 /// (a, b) of g for lobe `j` of `lobes` (Gaussian or ring) at outgoing `wo`.
