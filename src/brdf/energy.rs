@@ -69,7 +69,7 @@ pub fn default_outgoing(lobes: &LobeSet) -> Vec<DVec3> {
 /// unit): g = F0·a + b.
 pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrature, rule: &GaussLegendre) -> (f64, f64) {
     let k2 = wo.z;
-    if !(k2 > 0.0) {
+    if k2.is_nan() || k2 <= 0.0 {
         return (0.0, 0.0);
     }
     let base = quad.azimuth_points.max(4);
