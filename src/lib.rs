@@ -11,6 +11,7 @@
 pub mod brdf;
 pub mod env;
 pub mod inspect;
+pub mod light;
 pub mod math;
 pub mod scene;
 pub mod sphere;

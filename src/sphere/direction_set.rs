@@ -83,6 +83,37 @@ impl DirectionSet {
         face_direction(face.min(5), s, t)
     }
 
+    /// A k×k grid of sample directions inside texel `index` with weights proportional to the solid angle
+    /// each stands for (the cube-face Jacobian 1/(1 + s² + t²)^(3/2)), normalised to sum to 1. Used to
+    /// integrate an environment over a texel.
+    pub fn texel_samples(&self, index: usize, k: usize) -> impl Iterator<Item = (DVec3, f64)> + '_ {
+        let n = self.resolution;
+        let k = k.max(1);
+        let face = (index / (n * n)).min(5);
+        let rem = index % (n * n);
+        let (row, col) = (rem / n, rem % n);
+        let st = move |i: usize, j: usize| {
+            let s = -1.0 + 2.0 * (col as f64 + (i as f64 + 0.5) / k as f64) / n as f64;
+            let t = -1.0 + 2.0 * (row as f64 + (j as f64 + 0.5) / k as f64) / n as f64;
+            (s, t)
+        };
+        let total: f64 = (0..k * k)
+            .map(|q| {
+                let (s, t) = st(q % k, q / k);
+                (1.0 + s * s + t * t).powf(-1.5)
+            })
+            .sum();
+        (0..k * k).map(move |q| {
+            let (s, t) = st(q % k, q / k);
+            (face_direction(face, s, t), (1.0 + s * s + t * t).powf(-1.5) / total)
+        })
+    }
+
+    /// Angular size of the largest texel (radians, ≈ 90°/n at the face centre).
+    pub fn texel_angle(&self) -> f64 {
+        (std::f64::consts::FRAC_PI_2 / self.resolution as f64).max(1e-9)
+    }
+
     /// The texel containing direction `d` (any non-zero vector).
     pub fn texel_of(&self, d: DVec3) -> usize {
         let n = self.resolution;

@@ -31,6 +31,9 @@ pub struct TreeNode {
     pub solid_angle: f64,
     /// normalize(Σ Ω_i d_i) over the leaves.
     pub mean_direction: DVec3,
+    /// Σ Ω_i d_i over the leaves: for a unit n with every leaf above the plane (d_i·n > 0),
+    /// Σ Ω_i max(d_i·n, 0) = moment·n exactly.
+    pub moment: DVec3,
     /// min over leaves of d_i · mean_direction: the node's bounding cone (of leaf centres).
     pub cone_cos: f64,
 }
@@ -114,12 +117,14 @@ fn build_node(
         right: NO_CHILD,
         solid_angle: 0.0,
         mean_direction: DVec3::Z,
+        moment: DVec3::ZERO,
         cone_cos: 1.0,
     });
     if order.len() == 1 {
         let i = order[0] as usize;
         nodes[index].solid_angle = omegas[i];
         nodes[index].mean_direction = dirs[i];
+        nodes[index].moment = dirs[i] * omegas[i];
         return index as u32;
     }
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -144,8 +149,8 @@ fn build_node(
     let right = build_node(nodes, right_part, first + mid, dirs, omegas, level + 1, depth);
     let (l, r) = (nodes[left as usize], nodes[right as usize]);
     let solid_angle = l.solid_angle + r.solid_angle;
-    let weighted: DVec3 = order.iter().map(|&i| dirs[i as usize] * omegas[i as usize]).sum();
-    let mean_direction = weighted.try_normalize().unwrap_or(l.mean_direction);
+    let moment = l.moment + r.moment;
+    let mean_direction = moment.try_normalize().unwrap_or(l.mean_direction);
     let cone_cos = order
         .iter()
         .map(|&i| dirs[i as usize].dot(mean_direction))
@@ -155,6 +160,7 @@ fn build_node(
     node.right = right;
     node.solid_angle = solid_angle;
     node.mean_direction = mean_direction;
+    node.moment = moment;
     node.cone_cos = cone_cos;
     index as u32
 }
@@ -178,6 +184,8 @@ mod tests {
                 let direct = compensated_sum(range.clone().map(|k| set.solid_angles()[tree.leaf_texels()[k] as usize]));
                 assert!((node.solid_angle - direct).abs() <= 1e-14 * direct.max(1.0), "n={n}");
                 assert!((node.mean_direction.length() - 1.0).abs() < 1e-12);
+                let moment: DVec3 = range.clone().map(|k| tree.leaf_directions()[k] * tree.leaf_solid_angles()[k]).sum();
+                assert!((moment - node.moment).length() < 1e-13);
                 for k in range {
                     assert!(tree.leaf_directions()[k].dot(node.mean_direction) >= node.cone_cos - 1e-15);
                 }
