@@ -8,10 +8,13 @@
 //! Stages are free functions over plain data; IO lives only in the importers and at the CLI edge.
 //! See `ARCHITECTURE.md` for the code map and the invariants.
 
+pub mod bake;
 pub mod brdf;
 pub mod env;
 pub mod inspect;
 pub mod light;
 pub mod math;
+pub mod raster;
 pub mod scene;
 pub mod sphere;
+pub mod transfer;

@@ -29,7 +29,7 @@ pub struct LightSums {
     prefix_power: Vec<[f64; 3]>,
     /// prefix_omega[i] = Σ_{l<i} Ω_l.
     prefix_omega: Vec<f64>,
-    /// prefix_moment[i] = Σ_{l<i} Ω_l d_l.
+    /// prefix_moment[i] = Σ_{l<i} ∫_l ω dω (exact texel moments).
     prefix_moment: Vec<DVec3>,
 }
 
@@ -37,7 +37,7 @@ pub struct LightSums {
 /// ~256 of them (the ratio estimator's aliasing at texel borders shrinks with their number).
 pub fn subsamples_per_env_texel(set: &DirectionSet, env: &EnvMap) -> usize {
     let env_texel = 2.0 * std::f64::consts::PI / env.width().max(1) as f64;
-    ((16.0 * env_texel / set.texel_angle()).ceil() as usize).clamp(1, 16)
+    ((16.0 * env_texel / set.texel_angle()).ceil() as usize).clamp(1, 4)
 }
 
 /// Mean radiance of every texel of `set` (texel order) under `env` rotated by `rotation_rad`.
@@ -139,7 +139,7 @@ impl LightSums {
                 p[c] += w * l[c];
             }
             o += w;
-            m += tree.leaf_directions()[i] * w;
+            m += tree.leaf_moments()[i];
             prefix_power.push(p);
             prefix_omega.push(o);
             prefix_moment.push(m);
@@ -170,7 +170,7 @@ impl LightSums {
         self.prefix_omega[b] - self.prefix_omega[a]
     }
 
-    /// Σ Ω_l d_l over leaves [a, b).
+    /// Σ of the exact moments ∫ ω dω of leaves [a, b).
     #[inline]
     pub fn moment(&self, a: usize, b: usize) -> DVec3 {
         self.prefix_moment[b] - self.prefix_moment[a]

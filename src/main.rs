@@ -26,8 +26,8 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Bake per-vertex visibility cuts and the transfer for a view (issue #3).
-    Bake(Pending),
+    /// Bake per-vertex visibility cuts (reused when the inputs and settings are unchanged).
+    Bake(BakeArgs),
     /// Fit the BRDF to painted strokes (issue #4).
     Fit(Pending),
     /// Render a fitted material: PRT, Monte Carlo reference (issue #5).
@@ -40,6 +40,39 @@ enum Command {
     Study(Pending),
     /// The headless main job on the bundled sample (issue #5).
     Demo(Pending),
+}
+
+#[derive(clap::Args)]
+struct BakeArgs {
+    /// The scene: .glb or .gltf.
+    scene: PathBuf,
+    /// Equirectangular environment map (.exr or .hdr); decides how fine the direction set must be.
+    #[arg(long)]
+    env: PathBuf,
+    /// Output folder (default: ./<scene name>.bake).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Direction-set resolution per cube face (default: decided from the environment).
+    #[arg(long)]
+    resolution: Option<usize>,
+    /// Cut error bound ε (mean |Ṽ error| per cut node).
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
+    epsilon: f64,
+    /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
+    #[arg(long, default_value_t = 5.625)]
+    cell_deg: f64,
+    /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
+    trace_leaves: usize,
+    /// Cap on the nodes of one vertex's cut.
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().max_cut)]
+    max_cut: usize,
+    /// Rebuild even if a matching bake exists.
+    #[arg(long)]
+    force: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Arguments of a subcommand that this build does not have yet: accepted, then refused clearly.
@@ -57,7 +90,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Inspect { scene, env, json }) => inspect(&scene, env.as_deref(), json),
         None => default_job(),
-        Some(Command::Bake(_)) => return not_available("bake", 3),
+        Some(Command::Bake(args)) => bake(&args),
         Some(Command::Fit(_)) => return not_available("fit", 4),
         Some(Command::Render(_)) => return not_available("render", 5),
         Some(Command::Export(_)) => return not_available("export", 6),
@@ -82,6 +115,92 @@ fn inspect(scene_path: &Path, env_path: Option<&Path>, json: bool) -> Result<()>
         println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
     } else {
         print!("{}", report.to_text());
+    }
+    Ok(())
+}
+
+fn bake(args: &BakeArgs) -> Result<()> {
+    use glint::bake::{BakeSettings, CutSettings, file};
+    let out = args.out.clone().unwrap_or_else(|| {
+        let stem = args.scene.file_stem().map_or("scene".into(), |s| s.to_string_lossy().to_string());
+        PathBuf::from(format!("{stem}.bake"))
+    });
+    let settings = BakeSettings {
+        resolution: args.resolution,
+        cut: CutSettings { epsilon: args.epsilon, max_cut: args.max_cut, trace_leaves: args.trace_leaves, cell_leaves: 1, ..CutSettings::default() },
+        cell_deg: (args.cell_deg > 0.0).then_some(args.cell_deg),
+        ..BakeSettings::default()
+    };
+    let scene_hash = file::hash_file(&args.scene)?;
+    let env_hash = file::hash_file(&args.env)?;
+    let existing = out.join("bake.glint");
+    let mut reused = None;
+    if existing.exists() && !args.force {
+        match file::read(&existing) {
+            Ok((header, _)) if header.scene_hash == scene_hash && header.env_hash == env_hash && header.settings == settings => {
+                reused = Some(header);
+            }
+            Ok(_) => eprintln!("glint bake: {} was made from other inputs or settings; rebuilding", existing.display()),
+            Err(e) => eprintln!("glint bake: {e}; rebuilding"),
+        }
+    }
+    let (header, reused_flag) = match reused {
+        Some(h) => (h, true),
+        None => {
+            let scene = glint::scene::import(&args.scene)?;
+            let env = glint::env::load(&args.env)?;
+            let baker = glint::bake::Baker::new(&scene, &env, settings)?;
+            let bar = indicatif::ProgressBar::new(scene.mesh.positions.len() as u64);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("baking {bar:40} {pos}/{len} vertices ({eta})")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            let bake = baker.bake_all(None, &|n| bar.set_position(n as u64));
+            bar.finish_and_clear();
+            let header = file::BakeHeader {
+                format_version: file::FORMAT_VERSION,
+                glint_version: env!("CARGO_PKG_VERSION").into(),
+                scene_file: std::path::absolute(&args.scene).unwrap_or_else(|_| args.scene.clone()),
+                env_file: std::path::absolute(&args.env).unwrap_or_else(|_| args.env.clone()),
+                scene_hash,
+                env_hash,
+                settings,
+                decisions: bake.decisions.clone(),
+                stats: bake.stats.clone(),
+                vertex_count: bake.cuts.vertex_count(),
+            };
+            file::write(&out, &header, &bake.cuts)?;
+            (header, false)
+        }
+    };
+    let s = &header.stats;
+    let d = &header.decisions;
+    if args.json {
+        let json = serde_json::json!({
+            "bake": out.join("bake.glint"),
+            "reused": reused_flag,
+            "vertices": s.vertices,
+            "triangles": s.triangles,
+            "rays_traced": s.rays_traced,
+            "mean_cut_size": s.mean_cut_size,
+            "max_cut_size": s.max_cut_size,
+            "capped_vertices": s.capped_vertices,
+            "seconds": s.seconds,
+            "decision_seconds": s.decision_seconds,
+            "rays_per_second": s.rays_traced as f64 / (s.seconds - s.decision_seconds).max(1e-9),
+            "bytes_per_vertex": s.bytes_per_vertex,
+            "decisions": d,
+        });
+        println!("{json}");
+    } else {
+        println!("{} {}", if reused_flag { "reused" } else { "wrote" }, out.join("bake.glint").display());
+        println!("decision: {} — {}", if d.trace_visibility { "trace visibility" } else { "no ray tracing" }, d.trace_reason);
+        println!("decision: {} — {}", if d.anisotropic { "anisotropic frame" } else { "isotropic fit" }, d.frame_reason);
+        println!("decision: {} directions ({} per face) — {}", 6 * d.resolution * d.resolution, d.resolution, d.resolution_reason);
+        println!(
+            "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",
+            s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds, s.decision_seconds
+        );
     }
     Ok(())
 }

@@ -61,7 +61,11 @@ impl Tracer {
         } else {
             obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, BvhBuildParams::fast_build(), &mut build_time)
         };
-        let cwbvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 3, true, false);
+        let cwbvh = if triangles.is_empty() {
+            CwBvh::default()
+        } else {
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, BvhBuildParams::fast_build(), &mut build_time)
+        };
         Self { triangles, spheres, bvh2, cwbvh }
     }
 
@@ -109,12 +113,11 @@ impl Tracer {
                 for k in first..first + node.prim_count as usize {
                     let prim = self.bvh2.primitive_indices[k] as usize;
                     let t = &self.triangles[prim];
-                    let below = |v: Vec3A| (v - apex).dot(n) <= 0.0;
-                    if below(t.v0) && below(t.v1) && below(t.v2) {
+                    let s = self.spheres[prim];
+                    if !sphere_meets_cone(s.centre, s.radius, apex, axis, cos_a, sin_a) {
                         continue;
                     }
-                    let s = self.spheres[prim];
-                    if sphere_meets_cone(s.centre, s.radius, apex, axis, cos_a, sin_a) {
+                    if triangle_meets_cone(t, apex, n, axis, cos_a, sin_a) {
                         return false;
                     }
                 }
@@ -129,6 +132,66 @@ impl Tracer {
         }
         true
     }
+}
+
+/// Does the part of triangle `t` above the plane through `apex` (normal `n`) meet the cone?
+/// The triangle is clipped to the half-space (x − apex)·n > 0; every point of the clipped polygon is a
+/// convex combination of its corners, so the directions from the apex to it lie in the convex cone
+/// spanned by the corner directions, which is inside their bounding cap (centre = normalised sum of the
+/// unit corner directions, radius = the largest angle to a corner). Conservative: true when unsure (a
+/// corner at the apex, a polygon spanning more than a hemisphere of directions).
+fn triangle_meets_cone(t: &Triangle, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_a: f32, sin_a: f32) -> bool {
+    let verts = [t.v0, t.v1, t.v2];
+    let heights = verts.map(|v| (v - apex).dot(n));
+    let mut corners: [Vec3A; 4] = [Vec3A::ZERO; 4];
+    let mut count = 0;
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        let (a, b, ha, hb) = (verts[i], verts[j], heights[i], heights[j]);
+        if ha > 0.0 {
+            corners[count] = a;
+            count += 1;
+        }
+        if (ha > 0.0) != (hb > 0.0) {
+            // The edge crosses the plane: its crossing point (on the plane, elevation 0).
+            let s = ha / (ha - hb);
+            if count < 4 {
+                corners[count] = a + (b - a) * s;
+                count += 1;
+            }
+        }
+    }
+    if count == 0 {
+        return false;
+    }
+    let mut dirs = [Vec3A::ZERO; 4];
+    let mut sum = Vec3A::ZERO;
+    for k in 0..count {
+        let d = corners[k] - apex;
+        let len = d.length();
+        if !(len > 1e-12) {
+            return true;
+        }
+        dirs[k] = d / len;
+        sum += dirs[k];
+    }
+    let len = sum.length();
+    if !(len > 1e-6) {
+        return true;
+    }
+    let centre = sum / len;
+    let cos_r = dirs[..count].iter().map(|d| d.dot(centre)).fold(1.0f32, f32::min);
+    if cos_r <= 0.0 {
+        return true;
+    }
+    let sin_r = (1.0 - cos_r * cos_r).max(0.0).sqrt();
+    // Caps meet iff angle(centre, axis) ≤ α + r.
+    let cos_sum = cos_a * cos_r - sin_a * sin_r;
+    let sin_sum = sin_a * cos_r + cos_a * sin_r;
+    if sin_sum < 0.0 {
+        return true;
+    }
+    centre.dot(axis) >= cos_sum - 1e-6
 }
 
 /// Does the sphere (c, r) meet the infinite cone with apex `apex`, unit axis and half-angle α (given

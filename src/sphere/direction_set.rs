@@ -21,6 +21,7 @@ pub struct DirectionSet {
     resolution: usize,
     directions: Vec<DVec3>,
     solid_angles: Vec<f64>,
+    moments: Vec<DVec3>,
 }
 
 impl DirectionSet {
@@ -32,6 +33,7 @@ impl DirectionSet {
         let n = resolution;
         let mut directions = Vec::with_capacity(6 * n * n);
         let mut solid_angles = Vec::with_capacity(6 * n * n);
+        let mut moments = Vec::with_capacity(6 * n * n);
         let edge = |k: usize| -1.0 + 2.0 * k as f64 / n as f64;
         for face in 0..6 {
             for row in 0..n {
@@ -40,10 +42,17 @@ impl DirectionSet {
                     let d = face_direction(face, 0.5 * (s0 + s1), 0.5 * (t0 + t1));
                     directions.push(d);
                     solid_angles.push(rect_solid_angle(s0, s1, t0, t1));
+                    let corners = [
+                        face_direction(face, s0, t0),
+                        face_direction(face, s1, t0),
+                        face_direction(face, s1, t1),
+                        face_direction(face, s0, t1),
+                    ];
+                    moments.push(polygon_moment(&corners, d));
                 }
             }
         }
-        Ok(Self { resolution, directions, solid_angles })
+        Ok(Self { resolution, directions, solid_angles, moments })
     }
 
     /// Texels per face side.
@@ -69,6 +78,23 @@ impl DirectionSet {
     /// Exact texel solid angles (steradians).
     pub fn solid_angles(&self) -> &[f64] {
         &self.solid_angles
+    }
+
+    /// Exact texel moments ∫_texel ω dω (Arvo's formula): for any unit n with the whole texel above the
+    /// plane, ∫_texel max(ω·n, 0) dω = moment·n exactly.
+    pub fn moments(&self) -> &[DVec3] {
+        &self.moments
+    }
+
+    /// The four corner directions of texel `index` (counter-clockwise in face coordinates).
+    pub fn texel_corners(&self, index: usize) -> [DVec3; 4] {
+        let n = self.resolution;
+        let face = (index / (n * n)).min(5);
+        let rem = index % (n * n);
+        let (row, col) = (rem / n, rem % n);
+        let edge = |k: usize| -1.0 + 2.0 * k as f64 / n as f64;
+        let (s0, s1, t0, t1) = (edge(col), edge(col + 1), edge(row), edge(row + 1));
+        [face_direction(face, s0, t0), face_direction(face, s1, t0), face_direction(face, s1, t1), face_direction(face, s0, t1)]
     }
 
     /// Direction at fractional position (a, b) ∈ [0, 1]² inside texel `index` (a along the row, b down
@@ -151,6 +177,45 @@ pub fn direction_to_face(d: DVec3) -> (usize, f64, f64) {
     }
 }
 
+/// ∫ ω dω over the spherical polygon with unit corners `v` (great-circle edges), by Arvo's formula
+/// ½ Σ_i θ_i n̂_i (θ_i the edge's arc, n̂_i the unit normal of its plane), oriented towards `inside`.
+pub fn polygon_moment(v: &[DVec3], inside: DVec3) -> DVec3 {
+    let mut m = DVec3::ZERO;
+    for i in 0..v.len() {
+        let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        let Some(normal) = a.cross(b).try_normalize() else { continue };
+        m += normal * a.dot(b).clamp(-1.0, 1.0).acos();
+    }
+    m *= 0.5;
+    if m.dot(inside) < 0.0 { -m } else { m }
+}
+
+/// ∫ max(ω·n, 0) dω over the spherical polygon with unit corners `v` (great-circle edges): the polygon
+/// is clipped to the hemisphere ω·n ≥ 0 (the horizon is a great circle, so the clipped polygon still has
+/// great-circle edges) and the clipped moment is dotted with n. Exact for texels cut by the horizon.
+pub fn clipped_cosine_integral(v: &[DVec3], n: DVec3) -> f64 {
+    let mut clipped: Vec<DVec3> = Vec::with_capacity(v.len() + 2);
+    for i in 0..v.len() {
+        let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        let (ha, hb) = (a.dot(n), b.dot(n));
+        if ha >= 0.0 {
+            clipped.push(a);
+        }
+        if (ha >= 0.0) != (hb >= 0.0) {
+            // The point of the arc a→b on the plane ω·n = 0.
+            if let Some(p) = (a * hb - b * ha).try_normalize() {
+                let p = if p.dot(a + b) < 0.0 { -p } else { p };
+                clipped.push(p);
+            }
+        }
+    }
+    if clipped.len() < 3 {
+        return 0.0;
+    }
+    let inside: DVec3 = clipped.iter().copied().sum();
+    polygon_moment(&clipped, inside).dot(n).max(0.0)
+}
+
 fn corner_area(x: f64, y: f64) -> f64 {
     (x * y).atan2((x * x + y * y + 1.0).sqrt())
 }
@@ -191,6 +256,50 @@ mod tests {
         let exact = set.solid_angles()[index];
         let std_err = 4.0 * PI * ((hits as f64).sqrt() / samples as f64);
         assert!((mc - exact).abs() < 4.0 * std_err, "mc={mc} exact={exact}");
+    }
+
+    #[test]
+    fn texel_moments_are_exact() {
+        // The moment of a texel against a fine Jacobian-weighted quadrature of the same texel, and the
+        // moments of the whole sphere cancelling.
+        let set = DirectionSet::cube(4).unwrap();
+        for index in [0, 5, 17, 60] {
+            let k = 400;
+            let mut m = DVec3::ZERO;
+            for (d, w) in set.texel_samples(index, k) {
+                m += d * w;
+            }
+            m *= set.solid_angles()[index];
+            assert!((m - set.moments()[index]).length() < 1e-6 * set.solid_angles()[index], "{m} vs {}", set.moments()[index]);
+        }
+        let total: DVec3 = set.moments().iter().copied().sum();
+        assert!(total.length() < 1e-12);
+        // ∫ max(ω·n, 0) over the upper hemisphere of the +Y face-aligned n: π, summed from moments of the
+        // texels above the plane (the plane y = 0 runs along texel edges).
+        let n = DVec3::Y;
+        let e: f64 = set.moments().iter().zip(set.directions()).filter(|(_, d)| d.y > 0.0).map(|(m, _)| m.dot(n)).sum();
+        assert!((e - std::f64::consts::PI).abs() < 1e-12, "{e}");
+    }
+
+    #[test]
+    fn clipped_cosine_integral_is_exact_across_the_horizon() {
+        // A texel cut by a tilted horizon, against a fine Jacobian-weighted quadrature.
+        let set = DirectionSet::cube(4).unwrap();
+        let mut rng = crate::math::Rng::new(4);
+        for _ in 0..20 {
+            let index = (rng.next_u64() % set.len() as u64) as usize;
+            // A normal nearly perpendicular to the texel centre: the horizon crosses the texel.
+            let c = set.directions()[index];
+            let side = crate::sphere::Frame::from_normal(c).tangent;
+            let n = (side + c * rng.range(-0.2, 0.2)).normalize();
+            let mut want = 0.0;
+            for (d, w) in set.texel_samples(index, 600) {
+                want += w * d.dot(n).max(0.0);
+            }
+            want *= set.solid_angles()[index];
+            let got = clipped_cosine_integral(&set.texel_corners(index), n);
+            assert!((got - want).abs() < 2e-5 * set.solid_angles()[index], "{got} vs {want}");
+        }
     }
 
     #[test]

@@ -29,13 +29,15 @@ pub struct TreeNode {
     pub right: u32,
     /// Σ of the leaves' solid angles (sr).
     pub solid_angle: f64,
-    /// normalize(Σ Ω_i d_i) over the leaves.
+    /// normalize(moment): the node's mean direction.
     pub mean_direction: DVec3,
-    /// Σ Ω_i d_i over the leaves: for a unit n with every leaf above the plane (d_i·n > 0),
-    /// Σ Ω_i max(d_i·n, 0) = moment·n exactly.
+    /// Σ over the leaves of the exact texel moments ∫ ω dω: for a unit n with the node wholly above the
+    /// plane, ∫_node max(ω·n, 0) dω = moment·n exactly.
     pub moment: DVec3,
     /// min over leaves of d_i · mean_direction: the node's bounding cone (of leaf centres).
     pub cone_cos: f64,
+    /// sin of the cone's half-angle, √(1 − cone_cos²).
+    pub cone_sin: f64,
 }
 
 impl TreeNode {
@@ -49,6 +51,8 @@ impl TreeNode {
 #[derive(Debug, Clone)]
 pub struct LightTree {
     nodes: Vec<TreeNode>,
+    leaf_moments: Vec<DVec3>,
+    leaf_corners: Vec<[DVec3; 4]>,
     leaf_texel: Vec<u32>,
     leaf_directions: Vec<DVec3>,
     leaf_solid_angles: Vec<f64>,
@@ -62,10 +66,12 @@ impl LightTree {
         let mut order: Vec<u32> = (0..dirs.len() as u32).collect();
         let mut nodes = Vec::with_capacity(2 * dirs.len());
         let mut depth = 0;
-        build_node(&mut nodes, &mut order, 0, dirs, set.solid_angles(), 0, &mut depth);
+        build_node(&mut nodes, &mut order, 0, dirs, set.solid_angles(), set.moments(), 0, &mut depth);
         let leaf_directions = order.iter().map(|&i| dirs[i as usize]).collect();
         let leaf_solid_angles = order.iter().map(|&i| set.solid_angles()[i as usize]).collect();
-        Self { nodes, leaf_texel: order, leaf_directions, leaf_solid_angles, depth }
+        let leaf_moments = order.iter().map(|&i| set.moments()[i as usize]).collect();
+        let leaf_corners = order.iter().map(|&i| set.texel_corners(i as usize)).collect();
+        Self { nodes, leaf_moments, leaf_corners, leaf_texel: order, leaf_directions, leaf_solid_angles, depth }
     }
 
     /// All nodes, pre-order; index 0 is the root.
@@ -88,6 +94,16 @@ impl LightTree {
         &self.leaf_directions
     }
 
+    /// Corner directions of each leaf's texel, tree order.
+    pub fn leaf_corners(&self) -> &[[DVec3; 4]] {
+        &self.leaf_corners
+    }
+
+    /// Exact leaf moments ∫ ω dω in tree order.
+    pub fn leaf_moments(&self) -> &[DVec3] {
+        &self.leaf_moments
+    }
+
     /// Leaf solid angles in tree order.
     pub fn leaf_solid_angles(&self) -> &[f64] {
         &self.leaf_solid_angles
@@ -105,6 +121,7 @@ fn build_node(
     first: usize,
     dirs: &[DVec3],
     omegas: &[f64],
+    moments: &[DVec3],
     level: usize,
     depth: &mut usize,
 ) -> u32 {
@@ -119,12 +136,13 @@ fn build_node(
         mean_direction: DVec3::Z,
         moment: DVec3::ZERO,
         cone_cos: 1.0,
+        cone_sin: 0.0,
     });
     if order.len() == 1 {
         let i = order[0] as usize;
         nodes[index].solid_angle = omegas[i];
         nodes[index].mean_direction = dirs[i];
-        nodes[index].moment = dirs[i] * omegas[i];
+        nodes[index].moment = moments[i];
         return index as u32;
     }
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -145,8 +163,8 @@ fn build_node(
         dirs[a as usize][axis].total_cmp(&dirs[b as usize][axis]).then(a.cmp(&b))
     });
     let (left_part, right_part) = order.split_at_mut(mid);
-    let left = build_node(nodes, left_part, first, dirs, omegas, level + 1, depth);
-    let right = build_node(nodes, right_part, first + mid, dirs, omegas, level + 1, depth);
+    let left = build_node(nodes, left_part, first, dirs, omegas, moments, level + 1, depth);
+    let right = build_node(nodes, right_part, first + mid, dirs, omegas, moments, level + 1, depth);
     let (l, r) = (nodes[left as usize], nodes[right as usize]);
     let solid_angle = l.solid_angle + r.solid_angle;
     let moment = l.moment + r.moment;
@@ -162,6 +180,7 @@ fn build_node(
     node.mean_direction = mean_direction;
     node.moment = moment;
     node.cone_cos = cone_cos;
+    node.cone_sin = (1.0 - cone_cos * cone_cos).max(0.0).sqrt();
     index as u32
 }
 
@@ -184,7 +203,7 @@ mod tests {
                 let direct = compensated_sum(range.clone().map(|k| set.solid_angles()[tree.leaf_texels()[k] as usize]));
                 assert!((node.solid_angle - direct).abs() <= 1e-14 * direct.max(1.0), "n={n}");
                 assert!((node.mean_direction.length() - 1.0).abs() < 1e-12);
-                let moment: DVec3 = range.clone().map(|k| tree.leaf_directions()[k] * tree.leaf_solid_angles()[k]).sum();
+                let moment: DVec3 = range.clone().map(|k| set.moments()[tree.leaf_texels()[k] as usize]).sum();
                 assert!((moment - node.moment).length() < 1e-13);
                 for k in range {
                     assert!(tree.leaf_directions()[k].dot(node.mean_direction) >= node.cone_cos - 1e-15);

@@ -1,0 +1,162 @@
+//! The bake file: versioned, checksummed, written atomically.
+//!
+//! Layout of `bake.glint` (little-endian):
+//! `b"GLINTBAK"` · u32 format version · u32 header length · header (JSON: [`BakeHeader`]) ·
+//! u32 × (V + 1) offsets · u32 × E nodes · u16 × E visibility (padded to 4 bytes) · u64 FNV-1a of every
+//! byte before it. A `bake.json` beside it repeats the header for people.
+//!
+//! Inputs: a [`BakeHeader`] and [`Cuts`]. Outputs: the file, or the parsed bake. Invariants: a file that
+//! is truncated, corrupt (checksum), of another format version, or internally inconsistent is refused
+//! with a one-line reason — the caller rebuilds; a write never leaves a half-written file.
+
+use super::{BakeSettings, BakeStats, Cuts, Decisions};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Current format version; bump on any change of layout or meaning.
+pub const FORMAT_VERSION: u32 = 1;
+const MAGIC: &[u8; 8] = b"GLINTBAK";
+
+/// What a bake was made from and how.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BakeHeader {
+    pub format_version: u32,
+    pub glint_version: String,
+    /// Absolute paths of the inputs when baked.
+    pub scene_file: PathBuf,
+    pub env_file: PathBuf,
+    /// FNV-1a 64 of the input files' bytes, hex.
+    pub scene_hash: String,
+    pub env_hash: String,
+    pub settings: BakeSettings,
+    pub decisions: Decisions,
+    pub stats: BakeStats,
+    pub vertex_count: usize,
+}
+
+/// Why a bake file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeFileError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: not a glint bake (bad magic bytes)")]
+    NotABake { path: PathBuf },
+    #[error("{path}: bake format version {found}, this glint reads version {expected}")]
+    Version { path: PathBuf, found: u32, expected: u32 },
+    #[error("{path}: truncated ({what})")]
+    Truncated { path: PathBuf, what: String },
+    #[error("{path}: checksum mismatch (the file is corrupt)")]
+    Checksum { path: PathBuf },
+    #[error("{path}: bad header: {message}")]
+    Header { path: PathBuf, message: String },
+    #[error("{path}: inconsistent bake: {message}")]
+    Inconsistent { path: PathBuf, message: String },
+    #[error("{0}")]
+    Write(#[from] glint_exporters::AtomicWriteError),
+}
+
+/// FNV-1a, 64 bit.
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// Hex FNV-1a of a file's bytes.
+pub fn hash_file(path: &Path) -> Result<String, BakeFileError> {
+    let bytes = std::fs::read(path).map_err(|source| BakeFileError::Io { path: path.to_path_buf(), source })?;
+    Ok(format!("{:016x}", fnv1a64(&bytes)))
+}
+
+/// Serialises header and cuts.
+pub fn encode(header: &BakeHeader, cuts: &Cuts) -> Vec<u8> {
+    let json = serde_json::to_vec(header).unwrap_or_default();
+    let mut out = Vec::with_capacity(24 + json.len() + cuts.bytes() + 16);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    for &o in &cuts.offsets {
+        out.extend_from_slice(&o.to_le_bytes());
+    }
+    for &n in &cuts.nodes {
+        out.extend_from_slice(&n.to_le_bytes());
+    }
+    for &v in &cuts.visibility {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    if cuts.visibility.len() % 2 == 1 {
+        out.extend_from_slice(&[0, 0]);
+    }
+    let sum = fnv1a64(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
+    out
+}
+
+/// Writes `bake.glint` and `bake.json` into `dir` (created if missing), atomically.
+pub fn write(dir: &Path, header: &BakeHeader, cuts: &Cuts) -> Result<PathBuf, BakeFileError> {
+    std::fs::create_dir_all(dir).map_err(|source| BakeFileError::Io { path: dir.to_path_buf(), source })?;
+    let path = dir.join("bake.glint");
+    glint_exporters::write_atomic(&path, &encode(header, cuts))?;
+    let json = serde_json::to_vec_pretty(header).unwrap_or_default();
+    glint_exporters::write_atomic(&dir.join("bake.json"), &json)?;
+    Ok(path)
+}
+
+/// Reads and checks a bake file (`bake.glint`, or a folder holding one).
+pub fn read(path: &Path) -> Result<(BakeHeader, Cuts), BakeFileError> {
+    let path = if path.is_dir() { path.join("bake.glint") } else { path.to_path_buf() };
+    let bytes = std::fs::read(&path).map_err(|source| BakeFileError::Io { path: path.clone(), source })?;
+    decode(&path, &bytes)
+}
+
+/// Parses bytes of a bake file (see [`read`]).
+pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts), BakeFileError> {
+    let p = || path.to_path_buf();
+    let truncated = |what: &str| BakeFileError::Truncated { path: p(), what: what.into() };
+    if bytes.len() < 8 || &bytes[..8] != MAGIC {
+        return Err(if bytes.len() < 8 { truncated("no header") } else { BakeFileError::NotABake { path: p() } });
+    }
+    let u32_at = |at: usize| -> Option<u32> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])) };
+    let version = u32_at(8).ok_or_else(|| truncated("no version"))?;
+    if version != FORMAT_VERSION {
+        return Err(BakeFileError::Version { path: p(), found: version, expected: FORMAT_VERSION });
+    }
+    if bytes.len() < 24 {
+        return Err(truncated("shorter than the fixed header"));
+    }
+    let (body, sum) = bytes.split_at(bytes.len() - 8);
+    let stored = u64::from_le_bytes([sum[0], sum[1], sum[2], sum[3], sum[4], sum[5], sum[6], sum[7]]);
+    let header_len = u32_at(12).ok_or_else(|| truncated("no header length"))? as usize;
+    let header_end = 16usize.checked_add(header_len).filter(|&e| e <= body.len()).ok_or_else(|| truncated("header"))?;
+    if fnv1a64(body) != stored {
+        return Err(BakeFileError::Checksum { path: p() });
+    }
+    let header: BakeHeader = serde_json::from_slice(&body[16..header_end])
+        .map_err(|e| BakeFileError::Header { path: p(), message: e.to_string() })?;
+    let v = header.vertex_count;
+    let offsets_end = (v + 1).checked_mul(4).and_then(|n| n.checked_add(header_end)).filter(|&e| e <= body.len()).ok_or_else(|| truncated("offsets"))?;
+    let offsets: Vec<u32> = body[header_end..offsets_end].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let e = offsets.last().copied().unwrap_or(0) as usize;
+    if offsets.first() != Some(&0) || offsets.windows(2).any(|w| w[0] > w[1]) {
+        return Err(BakeFileError::Inconsistent { path: p(), message: "offsets are not ascending from 0".into() });
+    }
+    let padded = e * 2 + (e % 2) * 2;
+    let expected = offsets_end + e * 4 + padded;
+    if body.len() != expected {
+        return Err(if body.len() < expected { truncated("cut data") } else {
+            BakeFileError::Inconsistent { path: p(), message: format!("{} bytes of cut data, {} expected", body.len() - offsets_end, expected - offsets_end) }
+        });
+    }
+    let nodes: Vec<u32> = body[offsets_end..offsets_end + e * 4].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let vis_start = offsets_end + e * 4;
+    let visibility: Vec<u16> = body[vis_start..vis_start + e * 2].chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+    let node_count = 2 * 6 * header.decisions.resolution * header.decisions.resolution;
+    if nodes.iter().any(|&n| n as usize >= node_count) {
+        return Err(BakeFileError::Inconsistent { path: p(), message: "a cut names a node outside the light tree".into() });
+    }
+    Ok((header, Cuts { offsets, nodes, visibility }))
+}

@@ -1,0 +1,300 @@
+//! The bake: per-vertex visibility cuts through the light tree (method.md §4), with the decisions of
+//! what the scene calls for. View- and light-independent: a new view or a rotated environment needs no
+//! new ray tracing.
+//!
+//! Inputs: an imported [`Scene`], an [`EnvMap`] (only for decision (c): how fine the direction set must
+//! be), [`BakeSettings`]. Outputs: a [`Bake`]: decisions with reasons, the direction-set resolution, and
+//! per vertex a cut (tree nodes in pre-order with their cosine-weighted visible fraction V_k, see
+//! [`cuts`]), plus statistics. [`file`] stores it, versioned and checksummed.
+//!
+//! Invariants: no IO here (see [`file`]); the result is identical for any thread count (each vertex's
+//! cut depends on that vertex only); vertices can be baked in any order and in parts
+//! ([`Baker::bake_vertices`]), so the app can start fitting once the view's vertices are done.
+
+pub mod cuts;
+pub mod decisions;
+pub mod file;
+pub mod tracer;
+
+use crate::env::EnvMap;
+use crate::scene::Scene;
+use crate::sphere::{DirectionSet, LightTree, SphereError, srbf};
+pub use cuts::{CutScratch, CutSettings, VertexCut};
+pub use decisions::{Decisions, FrameSource};
+use glam::{DVec3, Vec4};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+pub use tracer::Tracer;
+
+/// Bake parameters (each a knob of the accuracy study).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BakeSettings {
+    /// Texels per cube-face side of the direction set; `None` decides it from the environment.
+    pub resolution: Option<usize>,
+    /// σ of the lobes the fit will use (decides the direction-set resolution).
+    pub sigma: f64,
+    /// The cut's knobs.
+    pub cut: CutSettings,
+    /// Trace even when no ray can hit the scene (to check decision (a)).
+    pub force_trace: bool,
+    /// Angular size of a visibility cell (degrees); sets `cut.cell_leaves` for the chosen resolution so
+    /// that the number of rays does not grow with it: (n · cell_deg / 90°)² leaves per cell (4 at
+    /// n = 32, 16 at n = 64). `None` keeps `cut.cell_leaves` as given.
+    pub cell_deg: Option<f64>,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: Some(5.625) }
+    }
+}
+
+/// Why a bake failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeError {
+    #[error("the scene has no vertices to bake")]
+    EmptyMesh,
+    #[error("bake settings: {0}")]
+    Sphere(#[from] SphereError),
+    #[error("bake settings: {0}")]
+    Settings(String),
+}
+
+/// Cuts of all vertices, compressed row storage.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cuts {
+    /// offsets[v]..offsets[v+1] index `nodes` and `visibility` for vertex v.
+    pub offsets: Vec<u32>,
+    /// Light-tree node indices, pre-order within each vertex.
+    pub nodes: Vec<u32>,
+    /// V_k quantised to u16 (V = q / 65535; error ≤ 7.6e-6).
+    pub visibility: Vec<u16>,
+}
+
+impl Cuts {
+    /// Packs per-vertex cuts (one per vertex, in vertex order).
+    pub fn from_vertex_cuts(cuts: &[VertexCut]) -> Self {
+        let mut out = Cuts { offsets: Vec::with_capacity(cuts.len() + 1), ..Default::default() };
+        out.offsets.push(0);
+        for c in cuts {
+            for &(node, v) in &c.entries {
+                out.nodes.push(node);
+                out.visibility.push(quantise(v));
+            }
+            out.offsets.push(out.nodes.len() as u32);
+        }
+        out
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// (node, V) of vertex v's cut.
+    pub fn cut(&self, v: usize) -> impl Iterator<Item = (u32, f32)> + '_ {
+        let (a, b) = match (self.offsets.get(v), self.offsets.get(v + 1)) {
+            (Some(&a), Some(&b)) => (a as usize, b as usize),
+            _ => (0, 0),
+        };
+        self.nodes[a..b].iter().zip(&self.visibility[a..b]).map(|(&n, &q)| (n, q as f32 / 65535.0))
+    }
+
+    /// Mean number of nodes per vertex.
+    pub fn mean_cut_size(&self) -> f64 {
+        self.nodes.len() as f64 / self.vertex_count().max(1) as f64
+    }
+
+    /// Bytes of the cut storage.
+    pub fn bytes(&self) -> usize {
+        self.offsets.len() * 4 + self.nodes.len() * 4 + self.visibility.len() * 2
+    }
+}
+
+fn quantise(v: f32) -> u16 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+}
+
+/// Bake statistics.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct BakeStats {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub rays_traced: u64,
+    pub mean_cut_size: f64,
+    pub max_cut_size: usize,
+    /// Vertices whose cut hit the cap, so ε was relaxed for them.
+    pub capped_vertices: usize,
+    pub seconds: f64,
+    /// Seconds spent on the decisions (BVH build, occlusion test, resolution probes).
+    pub decision_seconds: f64,
+    pub bytes: usize,
+    pub bytes_per_vertex: f64,
+}
+
+/// A finished bake.
+#[derive(Debug, Clone)]
+pub struct Bake {
+    pub settings: BakeSettings,
+    pub decisions: Decisions,
+    pub cuts: Cuts,
+    pub stats: BakeStats,
+}
+
+/// Everything needed to bake vertices, built once (BVH, tree, decisions).
+pub struct Baker<'a> {
+    scene: &'a Scene,
+    pub settings: BakeSettings,
+    pub decisions: Decisions,
+    pub set: DirectionSet,
+    pub tree: LightTree,
+    pub tracer: Tracer,
+    /// Tangents for the shading frames (decision (b)).
+    pub tangents: Option<Vec<Vec4>>,
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    offset: f64,
+    decision_seconds: f64,
+}
+
+impl<'a> Baker<'a> {
+    /// Builds the BVH and makes the decisions.
+    pub fn new(scene: &'a Scene, env: &EnvMap, settings: BakeSettings) -> Result<Self, BakeError> {
+        let start = std::time::Instant::now();
+        let mesh = &scene.mesh;
+        if mesh.positions.is_empty() {
+            return Err(BakeError::EmptyMesh);
+        }
+        if !(settings.cut.epsilon >= 0.0 && settings.cut.epsilon.is_finite()) {
+            return Err(BakeError::Settings(format!("epsilon must be finite and >= 0, not {}", settings.cut.epsilon)));
+        }
+        let lambda = srbf::lambda_from_sigma(settings.sigma)?;
+        let (resolution, resolution_reason, probe_errors) = match settings.resolution {
+            Some(n) => (n, format!("set explicitly to {n} per side ({} directions)", 6 * n * n), Vec::new()),
+            None => decisions::decide_resolution(env, lambda),
+        };
+        let set = DirectionSet::cube(resolution)?;
+        let mut settings = settings;
+        if let Some(deg) = settings.cell_deg {
+            let per_side = (resolution as f64 * deg / 90.0).max(1.0);
+            settings.cut.cell_leaves = (per_side * per_side).round().max(1.0) as usize;
+        }
+        let tree = LightTree::build(&set);
+        let tracer = Tracer::new(mesh);
+        let positions: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        let normals: Vec<DVec3> = mesh.normals.iter().map(|n| n.as_dvec3().try_normalize().unwrap_or(DVec3::Y)).collect();
+        let offset = settings.cut.ray_offset * scene.bounds.diagonal().max(1e-12) as f64;
+        let (needs_trace, mut trace_reason) = decisions::decide_occlusion(&positions, &normals, offset, &tracer);
+        let trace_visibility = needs_trace || settings.force_trace;
+        if settings.force_trace && !needs_trace {
+            trace_reason.push_str(" (traced anyway: force_trace)");
+        }
+        let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
+        let decisions = Decisions {
+            trace_visibility,
+            trace_reason,
+            anisotropic: frame_source != FrameSource::None,
+            frame_source,
+            frame_reason,
+            resolution,
+            resolution_reason,
+            resolution_probe_errors: probe_errors,
+        };
+        Ok(Self {
+            scene,
+            settings,
+            decisions,
+            set,
+            tree,
+            tracer,
+            tangents,
+            positions,
+            normals,
+            offset,
+            decision_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// (ray origin, unit normal) of vertex v: the point rays start from (offset along the normal).
+    pub fn ray_origin(&self, v: usize) -> Option<(DVec3, DVec3)> {
+        let (p, n) = (self.positions.get(v)?, self.normals.get(v)?);
+        Some((*p + *n * self.offset, *n))
+    }
+
+    /// The scene being baked.
+    pub fn scene(&self) -> &Scene {
+        self.scene
+    }
+
+    /// Cuts of the given vertices (in parallel), in the order given. `progress` is called with the
+    /// number of vertices finished so far (from any thread).
+    pub fn bake_vertices(&self, vertices: &[u32], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let leaves = self.tree.leaf_count();
+        vertices
+            .par_iter()
+            .map_init(
+                || CutScratch::new(leaves),
+                |scratch, &v| {
+                    let v = v as usize;
+                    let cut = if !self.decisions.trace_visibility {
+                        // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
+                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon }
+                    } else {
+                        match (self.positions.get(v), self.normals.get(v)) {
+                            (Some(&p), Some(&n)) => {
+                                cuts::vertex_cut(p, n, self.offset, &self.tree, &self.tracer, &self.settings.cut, scratch)
+                            }
+                            _ => VertexCut::default(),
+                        }
+                    };
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    if n % 256 == 0 || n == vertices.len() {
+                        progress(n);
+                    }
+                    cut
+                },
+            )
+            .collect()
+    }
+
+    /// Bakes every vertex; `order` (e.g. the fit view's vertices first) only changes which finish
+    /// first, not the result.
+    pub fn bake_all(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
+        let start = std::time::Instant::now();
+        let n = self.positions.len();
+        let default_order: Vec<u32> = (0..n as u32).collect();
+        let order = order.unwrap_or(&default_order);
+        let baked = self.bake_vertices(order, progress);
+        let mut per_vertex = vec![VertexCut::default(); n];
+        for (&v, cut) in order.iter().zip(baked) {
+            if let Some(slot) = per_vertex.get_mut(v as usize) {
+                *slot = cut;
+            }
+        }
+        let cuts = Cuts::from_vertex_cuts(&per_vertex);
+        let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
+        let capped_vertices = per_vertex.iter().filter(|c| c.epsilon_used > self.settings.cut.epsilon).count();
+        let max_cut_size = per_vertex.iter().map(|c| c.entries.len()).max().unwrap_or(0);
+        let bytes = cuts.bytes();
+        let stats = BakeStats {
+            vertices: n,
+            triangles: self.scene.mesh.triangles.len(),
+            rays_traced,
+            mean_cut_size: cuts.mean_cut_size(),
+            max_cut_size,
+            capped_vertices,
+            seconds: start.elapsed().as_secs_f64() + self.decision_seconds,
+            decision_seconds: self.decision_seconds,
+            bytes,
+            bytes_per_vertex: bytes as f64 / n.max(1) as f64,
+        };
+        Bake { settings: self.settings, decisions: self.decisions.clone(), cuts, stats }
+    }
+}
+
+/// One call: decisions, BVH, every vertex.
+pub fn bake(scene: &Scene, env: &EnvMap, settings: BakeSettings, progress: &(dyn Fn(usize) + Sync)) -> Result<Bake, BakeError> {
+    let baker = Baker::new(scene, env, settings)?;
+    Ok(baker.bake_all(None, progress))
+}

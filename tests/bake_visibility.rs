@@ -1,0 +1,123 @@
+//! The bake's visibility cuts against brute-force per-direction ray casting (every above-horizon leaf
+//! direction traced from every vertex), on the self-occluding teapot; and the "no occluder" decision on
+//! a sphere.
+
+mod common;
+
+use glint::bake::{BakeSettings, Baker, CutSettings};
+use glint::env::EnvMap;
+
+fn settings(resolution: usize, epsilon: f64) -> BakeSettings {
+    BakeSettings {
+        resolution: Some(resolution),
+        cut: CutSettings { epsilon, max_cut: 100_000, cell_leaves: 1, ..CutSettings::default() },
+        cell_deg: None,
+        ..BakeSettings::default()
+    }
+}
+
+/// For every vertex: per cut node, the stored mean Ṽ vs brute force, and the reconstruction error
+/// Σ_i Ω_i |Ṽ_i − V_k c_i| over the hemisphere. Returns (worst node-mean error, worst per-node mean
+/// reconstruction error / ε-normalised, mean reconstruction error per steradian, rays per vertex).
+fn compare(baker: &Baker, bake: &glint::bake::Bake) -> (f64, f64, f64) {
+    let tree = &baker.tree;
+    let mut worst_mean = 0.0f64;
+    let mut worst_node_dev = 0.0f64;
+    let mut total_dev = 0.0f64;
+    for v in 0..bake.cuts.vertex_count() {
+        let (origin, n) = baker.ray_origin(v).unwrap();
+        let o: glam::Vec3A = origin.as_vec3().into();
+        // Brute force: every leaf above the horizon.
+        let brute: Vec<f64> = (0..tree.leaf_count())
+            .map(|i| {
+                let d = tree.leaf_directions()[i];
+                let c = d.dot(n);
+                if c <= 0.0 {
+                    0.0
+                } else if baker.tracer.occluded(o, d.as_vec3().into()) {
+                    0.0
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let mut covered = vec![false; tree.leaf_count()];
+        for (k, vis) in bake.cuts.cut(v) {
+            let node = tree.nodes()[k as usize];
+            let range = node.first as usize..(node.first + node.count) as usize;
+            let (mut w, mut wv, mut dev) = (0.0, 0.0, 0.0);
+            for i in range.clone() {
+                assert!(!covered[i], "vertex {v}: leaf {i} in two cut nodes");
+                covered[i] = true;
+                // Ω_i c_i as the bake defines it: the leaf's exact cosine integral max(moment·n, 0); leaves
+                // whose centre is below the plane (horizon slivers of weight ~1e-6, whose centre ray runs
+                // into the surface) are left out of the comparison.
+                let wc = if tree.leaf_directions()[i].dot(n) > 0.0 { tree.leaf_moments()[i].dot(n).max(0.0) } else { 0.0 };
+                w += wc;
+                wv += wc * brute[i];
+                dev += wc * (brute[i] - vis as f64).abs();
+            }
+            let mean_brute = wv / node.solid_angle;
+            let mean_cut = vis as f64 * w / node.solid_angle;
+            worst_mean = worst_mean.max((mean_brute - mean_cut).abs());
+            worst_node_dev = worst_node_dev.max(dev / node.solid_angle);
+            total_dev += dev;
+        }
+        for i in 0..tree.leaf_count() {
+            // Above the horizon by both its centre and its exact moment (leaves astride the horizon, of
+            // weight ~1e-6, may go either way).
+            if tree.leaf_directions()[i].dot(n) > 0.0 && tree.leaf_moments()[i].dot(n) > 0.0 {
+                assert!(covered[i], "vertex {v}: above-horizon leaf {i} not in the cut");
+            }
+        }
+    }
+    (worst_mean, worst_node_dev, total_dev / bake.cuts.vertex_count() as f64)
+}
+
+#[test]
+fn teapot_cuts_match_brute_force_ray_casting_and_error_falls_with_epsilon() {
+    let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let mut previous = f64::INFINITY;
+    for epsilon in [0.1, 0.03, 0.01, 0.0] {
+        let baker = Baker::new(&scene, &env, settings(16, epsilon)).unwrap();
+        assert!(baker.decisions.trace_visibility, "the teapot occludes itself");
+        let bake = baker.bake_all(None, &|_| {});
+        let (worst_mean, worst_node_dev, mean_dev) = compare(&baker, &bake);
+        println!(
+            "teapot ε={epsilon}: mean cut {:.1} nodes, {:.1} rays/vertex, worst node-mean error {worst_mean:.2e}, worst node |Ṽ| error {worst_node_dev:.4}, mean error {mean_dev:.5} sr",
+            bake.stats.mean_cut_size,
+            bake.stats.rays_traced as f64 / bake.stats.vertices as f64
+        );
+        // Each node's mean Ṽ agrees with brute force within ε (u16 quantisation aside)...
+        assert!(worst_mean <= epsilon + 2e-5, "ε={epsilon}: node means off by {worst_mean}");
+        // ...its mean |Ṽ| reconstruction error is within ε...
+        assert!(worst_node_dev <= epsilon + 2e-5, "ε={epsilon}: node error {worst_node_dev}");
+        // ...and the total error falls as ε falls (to zero at ε = 0).
+        assert!(mean_dev <= previous + 1e-12, "error did not fall: {mean_dev} > {previous}");
+        previous = mean_dev;
+    }
+    assert!(previous < 1e-4, "ε = 0 must reproduce brute force, error {previous}");
+}
+
+#[test]
+fn a_sphere_traces_no_rays_and_matches_what_tracing_gives() {
+    let scene = common::scene_from_mesh(common::uv_sphere(0.5, 48, 24, false));
+    let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let baker = Baker::new(&scene, &env, settings(16, 0.02)).unwrap();
+    assert!(!baker.decisions.trace_visibility, "{}", baker.decisions.trace_reason);
+    let bake = baker.bake_all(None, &|_| {});
+    assert_eq!(bake.stats.rays_traced, 0);
+    // Forced tracing: the cone test alone proves every vertex's hemisphere free, so it casts no rays
+    // either, and the cuts say V = 1 everywhere.
+    let forced = Baker::new(&scene, &env, BakeSettings { force_trace: true, ..settings(16, 0.02) }).unwrap();
+    let traced = forced.bake_all(None, &|_| {});
+    let (worst_mean, _, mean_dev) = compare(&forced, &traced);
+    // Only horizon slivers (leaves whose centre is below the plane but whose moment is not) differ.
+    assert!(worst_mean < 2e-5 && mean_dev < 1e-5, "traced sphere: {worst_mean} {mean_dev}");
+    for v in 0..bake.cuts.vertex_count() {
+        let all_visible = traced.cuts.cut(v).all(|(_, vis)| vis == 1.0);
+        assert!(all_visible, "vertex {v}: a convex object's vertex sees occlusion");
+    }
+    println!("sphere: {} vertices, 0 rays; forced tracing: {} rays", bake.stats.vertices, traced.stats.rays_traced);
+}
