@@ -32,7 +32,7 @@ pub fn rasterize(mesh: &Mesh, camera: &Camera, width: u32, height: u32) -> Vec<F
     let clip: Vec<glam::Vec4> = mesh.positions.iter().map(|p| clip_from_world * p.extend(1.0)).collect();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let Some(c) = tri.iter().map(|&i| clip.get(i as usize).copied()).collect::<Option<Vec<_>>>() else { continue };
-        if c.iter().any(|v| !(v.w > 1e-6) || !v.is_finite()) {
+        if c.iter().any(|v| v.w.is_nan() || v.w <= 1e-6 || !v.is_finite()) {
             continue;
         }
         // Screen positions (pixels) and 1/w.

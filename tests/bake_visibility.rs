@@ -2,6 +2,8 @@
 //! direction traced from every vertex), on the self-occluding teapot; and the "no occluder" decision on
 //! a sphere.
 
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use glint::bake::{BakeSettings, Baker, CutSettings};
@@ -31,14 +33,7 @@ fn compare(baker: &Baker, bake: &glint::bake::Bake) -> (f64, f64, f64) {
         let brute: Vec<f64> = (0..tree.leaf_count())
             .map(|i| {
                 let d = tree.leaf_directions()[i];
-                let c = d.dot(n);
-                if c <= 0.0 {
-                    0.0
-                } else if baker.tracer.occluded(o, d.as_vec3().into()) {
-                    0.0
-                } else {
-                    1.0
-                }
+                if d.dot(n) <= 0.0 || baker.tracer.occluded(o, d.as_vec3().into()) { 0.0 } else { 1.0 }
             })
             .collect();
         let mut covered = vec![false; tree.leaf_count()];

@@ -1,6 +1,8 @@
 //! Transfer T and irradiance E against independent references: the white furnace, rotations, and
 //! direct numerical integration of eq. 6 with exact visibility and exact lobes.
 
+#![allow(clippy::too_many_arguments)]
+
 mod common;
 
 use glam::{DVec3, Vec3A};

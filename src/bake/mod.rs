@@ -249,7 +249,7 @@ impl<'a> Baker<'a> {
                         }
                     };
                     let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                    if n % 256 == 0 || n == vertices.len() {
+                    if n.is_multiple_of(256) || n == vertices.len() {
                         progress(n);
                     }
                     cut

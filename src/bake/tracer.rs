@@ -169,14 +169,14 @@ fn triangle_meets_cone(t: &Triangle, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_a: 
     for k in 0..count {
         let d = corners[k] - apex;
         let len = d.length();
-        if !(len > 1e-12) {
+        if len.is_nan() || len <= 1e-12 {
             return true;
         }
         dirs[k] = d / len;
         sum += dirs[k];
     }
     let len = sum.length();
-    if !(len > 1e-6) {
+    if len.is_nan() || len <= 1e-6 {
         return true;
     }
     let centre = sum / len;

@@ -66,7 +66,7 @@ impl LightTree {
         let mut order: Vec<u32> = (0..dirs.len() as u32).collect();
         let mut nodes = Vec::with_capacity(2 * dirs.len());
         let mut depth = 0;
-        build_node(&mut nodes, &mut order, 0, dirs, set.solid_angles(), set.moments(), 0, &mut depth);
+        build_node(&mut nodes, &mut order, 0, set, 0, &mut depth);
         let leaf_directions = order.iter().map(|&i| dirs[i as usize]).collect();
         let leaf_solid_angles = order.iter().map(|&i| set.solid_angles()[i as usize]).collect();
         let leaf_moments = order.iter().map(|&i| set.moments()[i as usize]).collect();
@@ -115,16 +115,8 @@ impl LightTree {
     }
 }
 
-fn build_node(
-    nodes: &mut Vec<TreeNode>,
-    order: &mut [u32],
-    first: usize,
-    dirs: &[DVec3],
-    omegas: &[f64],
-    moments: &[DVec3],
-    level: usize,
-    depth: &mut usize,
-) -> u32 {
+fn build_node(nodes: &mut Vec<TreeNode>, order: &mut [u32], first: usize, set: &DirectionSet, level: usize, depth: &mut usize) -> u32 {
+    let (dirs, omegas, moments) = (set.directions(), set.solid_angles(), set.moments());
     *depth = (*depth).max(level);
     let index = nodes.len();
     nodes.push(TreeNode {
@@ -163,8 +155,8 @@ fn build_node(
         dirs[a as usize][axis].total_cmp(&dirs[b as usize][axis]).then(a.cmp(&b))
     });
     let (left_part, right_part) = order.split_at_mut(mid);
-    let left = build_node(nodes, left_part, first, dirs, omegas, moments, level + 1, depth);
-    let right = build_node(nodes, right_part, first + mid, dirs, omegas, moments, level + 1, depth);
+    let left = build_node(nodes, left_part, first, set, level + 1, depth);
+    let right = build_node(nodes, right_part, first + mid, set, level + 1, depth);
     let (l, r) = (nodes[left as usize], nodes[right as usize]);
     let solid_angle = l.solid_angle + r.solid_angle;
     let moment = l.moment + r.moment;
