@@ -67,6 +67,15 @@ struct BakeArgs {
     /// Cap on the nodes of one vertex's cut.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().max_cut)]
     max_cut: usize,
+    /// A camera of the scene, by name (default: the first camera, or the default camera).
+    #[arg(long, conflicts_with = "orbit")]
+    camera: Option<String>,
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    orbit: Option<Vec<f32>>,
+    /// Fit resolution WxH (default: a quarter of the view in each axis, 160x120 for 640x480).
+    #[arg(long)]
+    fit_size: Option<String>,
     /// Rebuild even if a matching bake exists.
     #[arg(long)]
     force: bool,
@@ -173,6 +182,30 @@ fn bake(args: &BakeArgs) -> Result<()> {
             (header, false)
         }
     };
+    // The view: transfer for it and for a rotated environment (no ray tracing: only new sums).
+    let scene = glint::scene::import(&args.scene)?;
+    let env = glint::env::load(&args.env)?;
+    let camera = pick_view(&scene, args.camera.as_deref(), args.orbit.as_deref())?;
+    let (fit_w, fit_h) = match &args.fit_size {
+        Some(s) => parse_size(s)?,
+        None => ((camera.width / 4).max(1), (camera.height / 4).max(1)),
+    };
+    let (_, cuts) = file::read(&out.join("bake.glint"))?;
+    let set = glint::sphere::DirectionSet::cube(header.decisions.resolution)?;
+    let tree = glint::sphere::LightTree::build(&set);
+    let lambda = glint::sphere::srbf::lambda_from_sigma(header.settings.sigma)?;
+    let layout = if header.decisions.anisotropic { glint::sphere::LobeLayout::PAPER } else { glint::sphere::LobeLayout::Isotropic { count: 24 } };
+    let lobes = glint::sphere::LobeSet::new(layout, lambda)?;
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+    let ctx = glint::transfer::TransferContext::new(&scene.mesh, &cuts, &tree, &lobes, tangents.as_deref(), None);
+    let t0 = std::time::Instant::now();
+    let light = glint::light::LightSums::new(&env, &set, &tree, 0.0);
+    let light_seconds = t0.elapsed().as_secs_f64();
+    let transfer = ctx.compute(&light, &camera, fit_w, fit_h, 0.04);
+    let t1 = std::time::Instant::now();
+    let rotated = glint::light::LightSums::new(&env, &set, &tree, 0.5);
+    let rotated_transfer = ctx.compute(&rotated, &camera, fit_w, fit_h, 0.04);
+    let rotation_seconds = t1.elapsed().as_secs_f64();
     let s = &header.stats;
     let d = &header.decisions;
     if args.json {
@@ -190,6 +223,11 @@ fn bake(args: &BakeArgs) -> Result<()> {
             "rays_per_second": s.rays_traced as f64 / (s.seconds - s.decision_seconds).max(1e-9),
             "bytes_per_vertex": s.bytes_per_vertex,
             "decisions": d,
+            "view": { "camera": camera.name, "fit_width": fit_w, "fit_height": fit_h, "pixels": transfer.pixels.len(), "lobes": lobes.len() },
+            "light_seconds": light_seconds,
+            "transfer_seconds": transfer.seconds,
+            "rotation_seconds": rotation_seconds,
+            "rotated_transfer_seconds": rotated_transfer.seconds,
         });
         println!("{json}");
     } else {
@@ -201,8 +239,44 @@ fn bake(args: &BakeArgs) -> Result<()> {
             "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",
             s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds, s.decision_seconds
         );
+        println!(
+            "view '{}' at {fit_w}x{fit_h}: {} pixels, J = {}; light sums {:.3} s, transfer {:.3} s; a rotated environment: {:.3} s (sums + transfer, no rays)",
+            camera.name,
+            transfer.pixels.len(),
+            lobes.len(),
+            light_seconds,
+            transfer.seconds,
+            rotation_seconds
+        );
     }
     Ok(())
+}
+
+/// The view named on the command line: a camera by name, an orbit, or the scene's first camera.
+fn pick_view(scene: &glint::scene::Scene, name: Option<&str>, orbit: Option<&[f32]>) -> Result<glint::scene::Camera> {
+    if let Some(o) = orbit {
+        let &[az, el, dist] = o else { anyhow::bail!("--orbit takes three numbers: azimuth°,elevation°,distance") };
+        let first = scene.cameras.first();
+        let (w, h) = first.map_or((640, 480), |c| (c.width, c.height));
+        return Ok(glint::scene::orbit_camera(&scene.bounds, az, el, dist, w, h));
+    }
+    match name {
+        Some(n) => scene.cameras.iter().find(|c| c.name == n).cloned().ok_or_else(|| {
+            let names: Vec<&str> = scene.cameras.iter().map(|c| c.name.as_str()).collect();
+            anyhow::anyhow!("the scene has no camera named '{n}' (it has: {})", names.join(", "))
+        }),
+        None => scene.cameras.first().cloned().ok_or_else(|| anyhow::anyhow!("the scene has no camera")),
+    }
+}
+
+/// "WxH" → (W, H), both ≥ 1 and ≤ 8192.
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| anyhow::anyhow!("size '{s}' is not WxH"))?;
+    let (w, h): (u32, u32) = (w.trim().parse()?, h.trim().parse()?);
+    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
+        anyhow::bail!("size {w}x{h} is outside 1..8192");
+    }
+    Ok((w, h))
 }
 
 /// `glint` with no subcommand (`cargo run --release`): the main job that exists in this build. Until the

@@ -84,6 +84,22 @@ pub fn rasterize(mesh: &Mesh, camera: &Camera, width: u32, height: u32) -> Vec<F
     best.into_iter().flatten().collect()
 }
 
+/// The vertices of the triangles that cover at least one pixel of the view, ascending: what must be
+/// baked before the view can be fitted ("first fit fast").
+pub fn visible_vertices(mesh: &Mesh, camera: &Camera, width: u32, height: u32) -> Vec<u32> {
+    let mut seen = vec![false; mesh.positions.len()];
+    for f in rasterize(mesh, camera, width, height) {
+        if let Some(tri) = mesh.triangles.get(f.triangle as usize) {
+            for &i in tri {
+                if let Some(s) = seen.get_mut(i as usize) {
+                    *s = true;
+                }
+            }
+        }
+    }
+    seen.iter().enumerate().filter(|(_, s)| **s).map(|(i, _)| i as u32).collect()
+}
+
 /// Twice the signed area of (a, b, p) in screen space.
 #[inline]
 fn edge(a: Vec3, b: Vec3, p: Vec3) -> f32 {

@@ -158,6 +158,9 @@ pub struct TransferContext<'a> {
     grid: LobeGrid,
     /// Leaf ranges [first, end) of the shading partition, in order.
     shading: Vec<(u32, u32)>,
+    /// Per shading node: its axis and the (cos, sin) of a cone holding every leaf corner, to tell runs
+    /// wholly above a horizon without looking at their leaves.
+    shading_cones: Vec<(DVec3, f64, f64)>,
 }
 
 /// A vertex cut as leaf ranges.
@@ -188,7 +191,15 @@ impl<'a> TransferContext<'a> {
                 stack.push(node.left as usize);
             }
         }
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading }
+        let shading_cones = shading
+            .iter()
+            .map(|&(a, z)| {
+                let axis = tree.leaf_moments()[a as usize..z as usize].iter().copied().sum::<DVec3>().try_normalize().unwrap_or(DVec3::Z);
+                let cos = tree.leaf_corners()[a as usize..z as usize].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
+                (axis, cos, (1.0 - cos * cos).max(0.0).sqrt())
+            })
+            .collect();
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_cones }
     }
 
     /// Number of nodes in the shading partition (over the whole sphere).
@@ -296,8 +307,13 @@ impl<'a> TransferContext<'a> {
             // Σ Ω max(d·n, 0) over the run: exact from the moment when the whole run is above the
             // horizon, else leaf by leaf.
             // A run wholly above the horizon: its exact moment gives the cosine integral. Otherwise each
-            // leaf astride the horizon is clipped to it (exact too).
-            let wholly_above = self.tree.leaf_corners()[a..z].iter().all(|c| c.iter().all(|d| d.dot(normal) >= 0.0));
+            // leaf astride the horizon is clipped to it (exact too). The shading node's corner cone
+            // settles most runs without looking at their leaves.
+            let (axis, cc, cs) = self.shading_cones[si];
+            let cb = axis.dot(normal);
+            let sb = (1.0 - cb * cb).max(0.0).sqrt();
+            let cone_above = cb * cc - sb * cs > 0.0 && sb * cc + cb * cs > 0.0;
+            let wholly_above = cone_above || self.tree.leaf_corners()[a..z].iter().all(|c| c.iter().all(|d| d.dot(normal) >= 0.0));
             let cos_mass = if wholly_above {
                 moment.dot(normal)
             } else {
@@ -330,15 +346,17 @@ impl<'a> TransferContext<'a> {
                 continue;
             }
             let ws = weight * s;
+            let wp = [ws * power[0], ws * power[1], ws * power[2]];
+            let ring = self.lobes.layout().is_isotropic().then(|| self.lobes.ring_position(h));
             for &j in self.grid.candidates(h) {
-                let g = self.lobes.eval_one(j as usize, h);
-                if g == 0.0 {
-                    continue;
-                }
                 let j = j as usize;
-                for c in 0..3 {
-                    acc[c * j_count + j] += ws * g * power[c];
-                }
+                let g = match ring {
+                    Some(pos) => self.lobes.ring_value(j, pos),
+                    None => self.lobes.eval_one(j, h),
+                };
+                acc[j] += wp[0] * g;
+                acc[j_count + j] += wp[1] * g;
+                acc[2 * j_count + j] += wp[2] * g;
             }
         }
         (sample, acc.iter().map(|&x| x as f32).collect(), e)

@@ -193,27 +193,30 @@ pub fn polygon_moment(v: &[DVec3], inside: DVec3) -> DVec3 {
 /// ∫ max(ω·n, 0) dω over the spherical polygon with unit corners `v` (great-circle edges): the polygon
 /// is clipped to the hemisphere ω·n ≥ 0 (the horizon is a great circle, so the clipped polygon still has
 /// great-circle edges) and the clipped moment is dotted with n. Exact for texels cut by the horizon.
-pub fn clipped_cosine_integral(v: &[DVec3], n: DVec3) -> f64 {
-    let mut clipped: Vec<DVec3> = Vec::with_capacity(v.len() + 2);
+pub fn clipped_cosine_integral(v: &[DVec3; 4], n: DVec3) -> f64 {
+    let mut clipped = [DVec3::ZERO; 8];
+    let mut count = 0usize;
     for i in 0..v.len() {
         let (a, b) = (v[i], v[(i + 1) % v.len()]);
         let (ha, hb) = (a.dot(n), b.dot(n));
         if ha >= 0.0 {
-            clipped.push(a);
+            clipped[count] = a;
+            count += 1;
         }
         if (ha >= 0.0) != (hb >= 0.0) {
             // The point of the arc a→b on the plane ω·n = 0.
             if let Some(p) = (a * hb - b * ha).try_normalize() {
                 let p = if p.dot(a + b) < 0.0 { -p } else { p };
-                clipped.push(p);
+                clipped[count] = p;
+                count += 1;
             }
         }
     }
-    if clipped.len() < 3 {
+    if count < 3 {
         return 0.0;
     }
-    let inside: DVec3 = clipped.iter().copied().sum();
-    polygon_moment(&clipped, inside).dot(n).max(0.0)
+    let inside: DVec3 = clipped[..count].iter().copied().sum();
+    polygon_moment(&clipped[..count], inside).dot(n).max(0.0)
 }
 
 fn corner_area(x: f64, y: f64) -> f64 {

@@ -201,16 +201,28 @@ impl LobeSet {
     pub fn eval_one(&self, j: usize, h: DVec3) -> f64 {
         if self.layout.is_isotropic() {
             if h.z >= 0.0 {
-                let x = (1.0 - h.z.min(1.0)).sqrt() * RING_TABLE as f64;
-                let k = (x as usize).min(RING_TABLE - 1);
-                let f = x - k as f64;
-                let row = &self.ring_table[j * (RING_TABLE + 1)..(j + 1) * (RING_TABLE + 1)];
-                return row[k] + (row[k + 1] - row[k]) * f;
+                return self.ring_value(j, self.ring_position(h));
             }
             self.eval_exact(j, h)
         } else {
             srbf::gaussian(h.dot(self.centres[j]), self.lambda)
         }
+    }
+
+    /// For ring lobes: the table position of a local half-vector (h.z ≥ 0), shared by every lobe.
+    #[inline]
+    pub fn ring_position(&self, h: DVec3) -> (usize, f64) {
+        let x = (1.0 - h.z.clamp(0.0, 1.0)).sqrt() * RING_TABLE as f64;
+        let k = (x as usize).min(RING_TABLE - 1);
+        (k, x - k as f64)
+    }
+
+    /// Ring lobe j at a table position from [`Self::ring_position`].
+    #[inline]
+    pub fn ring_value(&self, j: usize, (k, f): (usize, f64)) -> f64 {
+        let base = j * (RING_TABLE + 1) + k;
+        let (a, b) = (self.ring_table[base], self.ring_table[base + 1]);
+        a + (b - a) * f
     }
 
     /// Lobe j at h by the closed form (no table).
