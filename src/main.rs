@@ -59,7 +59,7 @@ struct BakeArgs {
     #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
     epsilon: f64,
     /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
-    #[arg(long, default_value_t = 5.625)]
+    #[arg(long, default_value_t = glint::bake::BakeSettings::default().cell_deg.unwrap_or(0.0))]
     cell_deg: f64,
     /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]

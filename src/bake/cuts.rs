@@ -50,7 +50,7 @@ pub struct CutSettings {
 
 impl Default for CutSettings {
     fn default() -> Self {
-        Self { epsilon: 0.02, max_cut: 1024, trace_leaves: 256, cell_leaves: 4, ray_offset: 1e-4 }
+        Self { epsilon: 0.02, max_cut: 1024, trace_leaves: 4096, cell_leaves: 4, ray_offset: 1e-4 }
     }
 }
 

@@ -38,14 +38,16 @@ pub struct BakeSettings {
     /// Trace even when no ray can hit the scene (to check decision (a)).
     pub force_trace: bool,
     /// Angular size of a visibility cell (degrees); sets `cut.cell_leaves` for the chosen resolution so
-    /// that the number of rays does not grow with it: (n · cell_deg / 90°)² leaves per cell (4 at
-    /// n = 32, 16 at n = 64). `None` keeps `cut.cell_leaves` as given.
+    /// that the number of rays does not grow with it: (n · cell_deg / 90°)² leaves per cell (16 at
+    /// n = 32, 64 at n = 64 for the default 11.25°). `None` keeps `cut.cell_leaves` as given. Measured
+    /// (tests/transfer.rs): T is 0.60 % off direct integration on suzanne with 11.25° and with 5.6°
+    /// cells, while dragon_100k bakes in 5.8 s instead of 16.4 s.
     pub cell_deg: Option<f64>,
 }
 
 impl Default for BakeSettings {
     fn default() -> Self {
-        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: Some(5.625) }
+        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: Some(11.25) }
     }
 }
 

@@ -17,6 +17,7 @@ use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray;
+use obvhs::rt_triangle::RtTriangle;
 use obvhs::triangle::Triangle;
 use std::time::Duration;
 
@@ -30,6 +31,8 @@ struct Sphere {
 /// Acceleration structures over the mesh.
 pub struct Tracer {
     triangles: Vec<Triangle>,
+    /// The same triangles in CWBVH primitive order, in obvhs's intersection-ready form.
+    rt_triangles: Vec<RtTriangle>,
     spheres: Vec<Sphere>,
     bvh2: Bvh2,
     cwbvh: CwBvh,
@@ -66,7 +69,15 @@ impl Tracer {
         } else {
             obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, BvhBuildParams::fast_build(), &mut build_time)
         };
-        Self { triangles, spheres, bvh2, cwbvh }
+        let rt_triangles = cwbvh
+            .primitive_indices
+            .iter()
+            .map(|&i| {
+                let t = &triangles[i as usize];
+                RtTriangle::new(t.v0, t.v1, t.v2)
+            })
+            .collect();
+        Self { triangles, rt_triangles, spheres, bvh2, cwbvh }
     }
 
     /// Number of triangles in the BVH (degenerate ones excluded).
@@ -80,10 +91,7 @@ impl Tracer {
             return false;
         }
         let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
-        !self.cwbvh.ray_traverse_miss(ray, |ray, id| {
-            let prim = self.cwbvh.primitive_indices[id] as usize;
-            self.triangles[prim].intersect(ray)
-        })
+        !self.cwbvh.ray_traverse_miss(ray, |ray, id| self.rt_triangles[id].intersect(ray))
     }
 
     /// True when no ray from `apex` with direction d, d·axis ≥ cos_half_angle and d·n > 0, can hit a
