@@ -11,6 +11,7 @@
 pub mod bake;
 pub mod brdf;
 pub mod env;
+pub mod fit;
 pub mod inspect;
 pub mod light;
 pub mod math;
