@@ -28,8 +28,8 @@ enum Command {
     },
     /// Bake per-vertex visibility cuts (reused when the inputs and settings are unchanged).
     Bake(BakeArgs),
-    /// Fit the BRDF to painted strokes (issue #4).
-    Fit(Pending),
+    /// Fit the BRDF to painted strokes.
+    Fit(FitArgs),
     /// Render a fitted material: PRT, Monte Carlo reference (issue #5).
     Render(Pending),
     /// Export a fitted material: EXR table, glTF, USD, MERL (issue #6).
@@ -84,6 +84,40 @@ struct BakeArgs {
     json: bool,
 }
 
+#[derive(clap::Args)]
+struct FitArgs {
+    /// The bake made by `glint bake` (its folder or its bake.glint).
+    bake: PathBuf,
+    /// The stroke file (JSON; schema in src/fit/strokes.schema.json).
+    #[arg(long)]
+    strokes: PathBuf,
+    /// Where to write the material (lobe table JSON).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write the problem and its solution as .npy files (T, B, w, E, energy rows, bounds, c) and
+    /// meta.json into this folder.
+    #[arg(long)]
+    dump_qp: Option<PathBuf>,
+    /// Diffuse albedo r,g,b (not fitted).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
+    rho_d: Vec<f64>,
+    /// Schlick F0.
+    #[arg(long, default_value_t = 0.04)]
+    f0: f64,
+    /// Drop the energy rows: a physically impossible BRDF on purpose (c ≥ 0 still holds).
+    #[arg(long)]
+    no_energy_limit: bool,
+    /// Fit resolution WxH (default: a quarter of each stroke view's image size).
+    #[arg(long)]
+    fit_size: Option<String>,
+    /// Environment rotation about +Y in degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    rotate: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
 /// Arguments of a subcommand that this build does not have yet: accepted, then refused clearly.
 #[derive(clap::Args)]
 struct Pending {
@@ -100,7 +134,7 @@ fn main() -> ExitCode {
         Some(Command::Inspect { scene, env, json }) => inspect(&scene, env.as_deref(), json),
         None => default_job(),
         Some(Command::Bake(args)) => bake(&args),
-        Some(Command::Fit(_)) => return not_available("fit", 4),
+        Some(Command::Fit(args)) => fit(&args),
         Some(Command::Render(_)) => return not_available("render", 5),
         Some(Command::Export(_)) => return not_available("export", 6),
         Some(Command::App(_)) => return not_available("app", 7),
@@ -250,6 +284,93 @@ fn bake(args: &BakeArgs) -> Result<()> {
             rotation_seconds
         );
     }
+    Ok(())
+}
+
+fn fit(args: &FitArgs) -> Result<()> {
+    use glint::bake::file;
+    use glint::fit::{run, strokes};
+    let (header, cuts) = file::read(&args.bake)?;
+    for (path, hash, what) in [(&header.scene_file, &header.scene_hash, "scene"), (&header.env_file, &header.env_hash, "environment")] {
+        if &file::hash_file(path)? != hash {
+            anyhow::bail!("the {what} {} changed since the bake; run glint bake again", path.display());
+        }
+    }
+    let &[r, g, b] = args.rho_d.as_slice() else { anyhow::bail!("--rho-d takes three numbers r,g,b") };
+    let text = std::fs::read_to_string(&args.strokes).with_context(|| format!("cannot read {}", args.strokes.display()))?;
+    let views = strokes::parse(&text).with_context(|| args.strokes.display().to_string())?;
+    let scene = glint::scene::import(&header.scene_file)?;
+    let env = glint::env::load(&header.env_file)?;
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+    let settings = run::FitSettings {
+        rho_d: [r, g, b],
+        f0: args.f0,
+        energy_limit: !args.no_energy_limit,
+        fit_size: args.fit_size.as_deref().map(parse_size).transpose()?,
+        rotation_rad: args.rotate.to_radians(),
+        ..run::FitSettings::default()
+    };
+    let outcome = run::fit(&scene, &env, &cuts, header.decisions.resolution, tangents.as_deref(), header.decisions.anisotropic, &views, &settings)?;
+    let m = &outcome.material;
+    glint_exporters::write_atomic(&args.out, m.to_json().as_bytes())?;
+    if let Some(dir) = &args.dump_qp {
+        dump_qp(dir, &outcome, &settings)?;
+    }
+    let f = &m.fit;
+    if args.json {
+        println!("{}", serde_json::json!({ "material": args.out, "layout": m.layout.name(), "lobes": m.centres.len(), "fit": f }));
+    } else {
+        println!("wrote {} ({} lobes, layout {})", args.out.display(), m.centres.len(), m.layout.name());
+        println!(
+            "{} pixels in {} view(s); residual (weighted RMS) R {:.4e} G {:.4e} B {:.4e}; active energy rows {:?}; iterations {:?}; solve {:.2} ms",
+            f.pixels, f.views, f.residual_rms[0], f.residual_rms[1], f.residual_rms[2], f.active_energy_rows, f.iterations, f.solve_seconds * 1e3
+        );
+        for note in &f.notes {
+            println!("note: {note}");
+        }
+    }
+    Ok(())
+}
+
+/// `--dump-qp`: the problem and its solution as .npy files anyone can re-solve, plus meta.json.
+fn dump_qp(dir: &Path, outcome: &glint::fit::run::FitOutcome, settings: &glint::fit::run::FitSettings) -> Result<()> {
+    use glint_exporters::npy::write_f64;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let j = outcome.material.centres.len();
+    let (mut t, mut b, mut w, mut e) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for v in &outcome.views {
+        for p in 0..v.transfer.pixels.len() {
+            for c in 0..3 {
+                t.extend(v.transfer.t_row(p, c).iter().map(|x| *x as f64));
+            }
+            b.extend_from_slice(&v.target[p]);
+            w.push(v.weight[p]);
+            e.extend_from_slice(&v.transfer.irradiance[p]);
+        }
+    }
+    let n = w.len();
+    write_f64(&dir.join("T.npy"), &[n, 3, j], &t)?;
+    write_f64(&dir.join("B.npy"), &[n, 3], &b)?;
+    write_f64(&dir.join("w.npy"), &[n], &w)?;
+    write_f64(&dir.join("E.npy"), &[n, 3], &e)?;
+    let rows = outcome.energy.as_ref().map(|table| (table.rows(), table.matrix(settings.f0)));
+    if let Some((l, g)) = &rows {
+        write_f64(&dir.join("energy_rows.npy"), &[*l, j], g)?;
+    }
+    write_f64(&dir.join("bounds.npy"), &[3], &settings.rho_d.map(|r| 1.0 - r))?;
+    let c: Vec<f64> = outcome.material.coefficients.iter().flatten().copied().collect();
+    write_f64(&dir.join("c.npy"), &[3, j], &c)?;
+    let meta = serde_json::json!({
+        "problem": "per channel k: minimise sum_i w_i (B[i,k] - rho_d[k]/pi E[i,k] - sum_j T[i,k,j] c[k,j])^2 subject to c[k] >= 0 and energy_rows @ c[k] <= bounds[k] (energy rows absent when the limit is off)",
+        "rho_d": settings.rho_d,
+        "f0": settings.f0,
+        "energy_limit": settings.energy_limit,
+        "pixels": n,
+        "lobes": j,
+        "energy_rows": rows.as_ref().map_or(0, |r| r.0),
+        "files": ["T.npy", "B.npy", "w.npy", "E.npy", "energy_rows.npy", "bounds.npy", "c.npy"],
+    });
+    glint_exporters::write_atomic(&dir.join("meta.json"), serde_json::to_string_pretty(&meta)?.as_bytes())?;
     Ok(())
 }
 

@@ -2,8 +2,16 @@
 //! squares per colour channel finds the lobe coefficients.
 //!
 //! - [`strokes`]: the stroke file (JSON) and the brush of eq. 23.
-//! - `qp` (the solver) comes next.
+//! - [`problem`]: the weighted normal equations per channel and the per-channel system kept across strokes.
+//! - [`material`]: the lobe table that a fit writes.
+//! - [`run`]: a whole fit from a bake and a stroke file.
+//! - [`qp`]: an exact, warm-started dual active-set solver (Goldfarb–Idnani) for
+//!   min ½cᵀHc + qᵀc subject to c ≥ 0 and Gc ≤ u.
 //!
 //! Invariants: no IO except parsing stroke text handed in by the caller; knows no wgpu; f64.
 
+pub mod material;
+pub mod problem;
+pub mod qp;
+pub mod run;
 pub mod strokes;

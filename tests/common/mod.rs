@@ -68,3 +68,52 @@ pub fn uv_sphere(r: f32, segments: u32, rings: u32, tangents: bool) -> Mesh {
     }
     Mesh { positions, normals, tangents: tangents.then_some(tan), uvs: None, triangles }
 }
+
+/// Clarabel (an interior-point solver sharing no code with glint's) on
+/// min ½cᵀHc + qᵀc s.t. c ≥ 0, Gc ≤ u; H n×n and G m×n row-major. Returns c.
+pub fn clarabel_qp(h: &[f64], q: &[f64], g: &[f64], u: &[f64], n: usize, m: usize) -> Vec<f64> {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT};
+    let mut colptr = vec![0];
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for j in 0..n {
+        for i in 0..=j {
+            rowval.push(i);
+            nzval.push(h[i * n + j]);
+        }
+        colptr.push(rowval.len());
+    }
+    let p = CscMatrix::new(n, n, colptr, rowval, nzval);
+    let mut colptr = vec![0];
+    let mut rowval = Vec::new();
+    let mut nzval = Vec::new();
+    for j in 0..n {
+        rowval.push(j);
+        nzval.push(-1.0);
+        for l in 0..m {
+            rowval.push(n + l);
+            nzval.push(g[l * n + j]);
+        }
+        colptr.push(rowval.len());
+    }
+    let a = CscMatrix::new(n + m, n, colptr, rowval, nzval);
+    let b: Vec<f64> = std::iter::repeat_n(0.0, n).chain(u.iter().copied()).collect();
+    let cones: [SupportedConeT<f64>; 1] = [NonnegativeConeT(n + m)];
+    let settings = DefaultSettings { verbose: false, tol_gap_abs: 1e-10, tol_gap_rel: 1e-10, tol_feas: 1e-10, max_iter: 200, ..DefaultSettings::default() };
+    let mut solver = DefaultSolver::new(&p, q, &a, &b, &cones, settings).expect("clarabel setup");
+    solver.solve();
+    let status = solver.solution.status;
+    assert!(matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved), "clarabel: {status:?}");
+    solver.solution.x.clone()
+}
+
+/// ½cᵀHc + qᵀc.
+pub fn qp_objective(h: &[f64], q: &[f64], c: &[f64], n: usize) -> f64 {
+    let mut f = 0.0;
+    for i in 0..n {
+        let hc: f64 = (0..n).map(|j| h[i * n + j] * c[j]).sum();
+        f += 0.5 * c[i] * hc + q[i] * c[i];
+    }
+    f
+}

@@ -1,0 +1,50 @@
+//! NumPy `.npy` (format version 1.0) for little-endian f64 arrays, so anyone can reload a dumped
+//! problem with `numpy.load` and re-solve it with another solver.
+//!
+//! Inputs: a shape and row-major (C-order) f64 data. Output: the file bytes (or an atomic write).
+//! Invariant: the header is padded so the data starts at a multiple of 64 bytes, as the format asks.
+
+use crate::atomic::{AtomicWriteError, write_atomic};
+use std::path::Path;
+
+/// The bytes of an `.npy` file holding `data` with `shape` (C order, `<f8`).
+pub fn encode_f64(shape: &[usize], data: &[f64]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let shape_text = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
+    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape_text}, }}");
+    // magic (6) + version (2) + header length (2) + header + '\n' must be a multiple of 64.
+    let unpadded = 10 + header.len() + 1;
+    header.push_str(&" ".repeat((64 - unpadded % 64) % 64));
+    header.push('\n');
+    let mut out = Vec::with_capacity(10 + header.len() + data.len() * 8);
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    out.extend_from_slice(header.as_bytes());
+    for v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// Writes an `.npy` file atomically.
+pub fn write_f64(path: &Path, shape: &[usize], data: &[f64]) -> Result<(), AtomicWriteError> {
+    write_atomic(path, &encode_f64(shape, data))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_is_aligned_and_data_follows() {
+        let bytes = encode_f64(&[2, 3], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(&bytes[..6], b"\x93NUMPY");
+        let hlen = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + hlen) % 64, 0);
+        let header = std::str::from_utf8(&bytes[10..10 + hlen]).unwrap();
+        assert!(header.contains("'shape': (2, 3)") && header.ends_with('\n'));
+        assert_eq!(bytes.len(), 10 + hlen + 48);
+        assert_eq!(f64::from_le_bytes(bytes[10 + hlen + 40..].try_into().unwrap()), 6.0);
+        assert!(String::from_utf8_lossy(&encode_f64(&[4], &[0.0; 4])).contains("(4,)"));
+    }
+}
