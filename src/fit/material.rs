@@ -102,16 +102,14 @@ impl Material {
     /// Parses and validates a material.
     pub fn parse(text: &str) -> Result<Self, MaterialError> {
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| MaterialError::Json(e.to_string()))?;
-        if let Some(model) = value.get("model").and_then(|m| m.as_str()) {
-            if model != MODEL {
+        if let Some(model) = value.get("model").and_then(|m| m.as_str())
+            && model != MODEL {
                 return Err(MaterialError::Model { found: model.into() });
             }
-        }
-        if let Some(version) = value.get("version").and_then(|v| v.as_u64()) {
-            if version != MATERIAL_VERSION as u64 {
+        if let Some(version) = value.get("version").and_then(|v| v.as_u64())
+            && version != MATERIAL_VERSION as u64 {
                 return Err(MaterialError::Version { found: version.min(u32::MAX as u64) as u32 });
             }
-        }
         let m: Material = serde_json::from_value(value).map_err(|e| MaterialError::Json(e.to_string()))?;
         let j = m.layout.count();
         if m.centres.len() != j || m.coefficients.iter().any(|c| c.len() != j) {

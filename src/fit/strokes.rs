@@ -126,11 +126,10 @@ fn validate(v: &ViewStrokes) -> Result<(), String> {
     if !(v.keep_weight.is_finite() && v.keep_weight >= 0.0) {
         return Err(format!("keep_weight {} must be finite and >= 0", v.keep_weight));
     }
-    if let ViewSpec::Orbit { orbit } = &v.view {
-        if orbit.iter().any(|x| !x.is_finite()) {
+    if let ViewSpec::Orbit { orbit } = &v.view
+        && orbit.iter().any(|x| !x.is_finite()) {
             return Err("orbit values must be finite".into());
         }
-    }
     for (k, s) in v.strokes.iter().enumerate() {
         let bad = |m: String| Err(format!("stroke {k}: {m}"));
         if s.points.is_empty() {
