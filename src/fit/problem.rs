@@ -36,56 +36,71 @@ pub struct NormalEquations {
     pub pixels: usize,
 }
 
-/// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views (f64 accumulation; rows of H in
-/// parallel).
+/// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64 accumulation.
+///
+/// T is stored row-major per pixel, so H is accumulated as Σ_p w_p a_p a_pᵀ (upper triangle, the inner
+/// loop over contiguous lobes), over fixed chunks of 512 pixels summed in order: parallel, cache
+/// friendly, and deterministic whatever the thread count.
 pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> NormalEquations {
     let j = views.first().map_or(0, |v| v.transfer.lobes);
-    // Gather √w·T columns (J × N, column-major by lobe) and √w·residual targets.
-    let mut cols: Vec<Vec<f64>> = vec![Vec::new(); j];
-    let mut y = Vec::new();
-    let mut weight_sum = 0.0;
-    for v in views {
-        for (p, &w) in v.weight.iter().enumerate().take(v.transfer.pixels.len()) {
-            let sw = w.max(0.0).sqrt();
-            let row = v.transfer.t_row(p, channel);
-            for (k, col) in cols.iter_mut().enumerate() {
-                col.push(sw * row.get(k).copied().unwrap_or(0.0) as f64);
+    // (view, pixel) list in order.
+    let items: Vec<(usize, usize)> =
+        views.iter().enumerate().flat_map(|(vi, v)| (0..v.weight.len().min(v.transfer.pixels.len())).map(move |p| (vi, p))).collect();
+    const CHUNK: usize = 512;
+    let partial: Vec<(Vec<f64>, Vec<f64>, f64, f64)> = items
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut h = vec![0.0f64; j * j];
+            let mut r = vec![0.0f64; j];
+            let (mut constant, mut weight_sum) = (0.0, 0.0);
+            let mut a = vec![0.0f64; j];
+            for &(vi, p) in chunk {
+                let v = &views[vi];
+                let w = v.weight[p].max(0.0);
+                if w == 0.0 {
+                    continue;
+                }
+                for (x, t) in a.iter_mut().zip(v.transfer.t_row(p, channel)) {
+                    *x = *t as f64;
+                }
+                let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
+                let y = v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse;
+                for k in 0..j {
+                    let wk = w * a[k];
+                    if wk == 0.0 {
+                        continue;
+                    }
+                    let row = &mut h[k * j + k..(k + 1) * j];
+                    for (hh, x) in row.iter_mut().zip(&a[k..]) {
+                        *hh += wk * x;
+                    }
+                    r[k] += wk * y;
+                }
+                constant += w * y * y;
+                weight_sum += w;
             }
-            let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
-            let b = v.target.get(p).map_or(0.0, |t| t[channel]);
-            y.push(sw * (b - diffuse));
-            weight_sum += w.max(0.0);
-        }
-    }
-    let h_rows: Vec<Vec<f64>> = (0..j)
-        .into_par_iter()
-        .map(|a| (0..j).map(|b| if b < a { 0.0 } else { dot(&cols[a], &cols[b]) }).collect())
+            (h, r, constant, weight_sum)
+        })
         .collect();
-    let mut h = vec![0.0; j * j];
+    let mut h = vec![0.0f64; j * j];
+    let mut r = vec![0.0f64; j];
+    let (mut constant, mut weight_sum) = (0.0, 0.0);
+    for (ph, pr, pc, pw) in partial {
+        for (a, b) in h.iter_mut().zip(&ph) {
+            *a += b;
+        }
+        for (a, b) in r.iter_mut().zip(&pr) {
+            *a += b;
+        }
+        constant += pc;
+        weight_sum += pw;
+    }
     for a in 0..j {
-        for b in a..j {
-            h[a * j + b] = h_rows[a][b];
-            h[b * j + a] = h_rows[a][b];
+        for b in 0..a {
+            h[a * j + b] = h[b * j + a];
         }
     }
-    let r = cols.par_iter().map(|c| dot(c, &y)).collect();
-    NormalEquations { j, h, r, constant: dot(&y, &y), weight_sum, pixels: y.len() }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    // Four partial sums: vectorises and is deterministic (fixed order).
-    let mut s = [0.0f64; 4];
-    let chunks = a.len() / 4;
-    for i in 0..chunks {
-        for k in 0..4 {
-            s[k] += a[4 * i + k] * b[4 * i + k];
-        }
-    }
-    let mut tail = 0.0;
-    for i in 4 * chunks..a.len().min(b.len()) {
-        tail += a[i] * b[i];
-    }
-    (s[0] + s[1]) + (s[2] + s[3]) + tail
+    NormalEquations { j, h, r, constant, weight_sum, pixels: items.len() }
 }
 
 /// The per-channel system with its solver, kept across strokes (H fixed, q changing).

@@ -1,0 +1,133 @@
+//! Fit benchmarks (issue #4): `cargo bench --bench fit`. Prints median times over repeated runs.
+//!
+//! Problems: the real transfer of the bunny under courtyard (default view, isotropic J = 24) at the fit
+//! resolution 160×120 and at full resolution 640×480; and transfers of the same size with J = 147 and
+//! J = 300 lobes (the paper's anisotropic count and a finer one), built from a UV sphere with a tangent
+//! field so that anisotropic lobes apply. 192 energy rows (anisotropic) / 32 (isotropic).
+
+use glint::bake::{BakeSettings, Baker};
+use glint::fit::problem::{ChannelSystem, ViewData, normal_equations};
+use glint::fit::qp::{HotStart, QpSolver};
+use glint::light::LightSums;
+use glint::scene::Scene;
+use glint::sphere::{LobeLayout, LobeSet, srbf};
+use glint::transfer::{Transfer, TransferContext};
+use std::path::Path;
+use std::time::Instant;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
+    median((0..reps).map(|_| { let t = Instant::now(); std::hint::black_box(f()); t.elapsed().as_secs_f64() * 1e3 }).collect())
+}
+
+fn transfer_for(scene: &Scene, env: &glint::env::EnvMap, layout: LobeLayout, size: (u32, u32)) -> (Transfer, LobeSet) {
+    let baker = Baker::new(scene, env, BakeSettings { resolution: Some(32), ..BakeSettings::default() }).unwrap();
+    let bake = baker.bake_all(None, &|_| {});
+    let lobes = LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let light = LightSums::new(env, &baker.set, &baker.tree, 0.0);
+    let mut camera = scene.cameras[0].clone();
+    camera.width = size.0 * 4;
+    camera.height = size.1 * 4;
+    let ctx = TransferContext::new(&scene.mesh, &bake.cuts, &baker.tree, &lobes, baker.tangents.as_deref(), None);
+    (ctx.compute(&light, &camera, size.0, size.1, 0.04), lobes)
+}
+
+fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
+    let energy = glint::brdf::EnergyTable::with_defaults(lobes);
+    let n = transfer.pixels.len();
+    // A bright stroke's worth of targets over a third of the pixels, keep weight elsewhere.
+    let zero = vec![0.0; lobes.len()];
+    let current = transfer.render([0.5; 3], [&zero, &zero, &zero]);
+    let target: Vec<[f64; 3]> = current.iter().enumerate().map(|(i, b)| if i % 3 == 0 { [b[0] + 1.5, b[1] + 1.2, b[2] + 1.0] } else { *b }).collect();
+    let weight: Vec<f64> = (0..n).map(|i| if i % 3 == 0 { 1.0 } else { 0.1 }).collect();
+    let data = [ViewData { transfer, target: &target, weight: &weight }];
+    let form = time(5, || (0..3).map(|c| normal_equations(&data, c, 0.5)).collect::<Vec<_>>());
+    let cold = time(5, || {
+        (0..3)
+            .map(|c| ChannelSystem::new(normal_equations(&data, c, 0.5), Some((&energy, 0.04)), 0.5).unwrap().solve(None).unwrap())
+            .collect::<Vec<_>>()
+    });
+    // Warm and hot re-solves after a small stroke (q changes by a few % on 10 % of the lobes).
+    let eq = normal_equations(&data, 0, 0.5);
+    let solver = QpSolver::new(&eq.h, eq.j, &energy.matrix(0.04), &vec![0.5; energy.rows()], energy.rows()).unwrap();
+    let q: Vec<f64> = eq.r.iter().map(|x| -x).collect();
+    let first = solver.solve(&q, None).unwrap();
+    let q2: Vec<f64> = q.iter().enumerate().map(|(i, x)| if i % 10 == 0 { x * 1.03 } else { *x }).collect();
+    let warm = time(20, || solver.solve(&q2, Some(&first.active)).unwrap());
+    let mut hot = HotStart::default();
+    let _ = solver.solve_hot(&q, &mut hot).unwrap();
+    let hot_ms = time(20, || {
+        let mut h = hot.clone();
+        solver.solve_hot(&q2, &mut h).unwrap()
+    });
+    println!(
+        "{label}: N = {n} pixels, J = {}, {} energy rows | form H (RGB) {form:.2} ms | cold fit incl. H (RGB) {cold:.2} ms | warm re-solve {warm:.3} ms/channel | hot re-solve {hot_ms:.3} ms/channel",
+        lobes.len(),
+        energy.rows()
+    );
+}
+
+fn main() {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
+    let env = glint::env::load(&assets.join("hdr/small/courtyard_512.exr")).unwrap();
+    let bunny = glint::scene::import(&assets.join("glb/bunny.glb")).unwrap();
+    let iso = LobeLayout::Isotropic { count: 24 };
+    let (t, l) = transfer_for(&bunny, &env, iso, (160, 120));
+    bench("bunny 160x120, isotropic", &t, &l);
+    let (t, l) = transfer_for(&bunny, &env, iso, (640, 480));
+    bench("bunny 640x480, isotropic", &t, &l);
+    // A tangent-carrying sphere (1.6 K pixels at 160x120 with the default camera ~ the paper's N).
+    let sphere = sphere_scene();
+    for layout in [LobeLayout::PAPER, LobeLayout::Fibonacci { count: 300 }] {
+        let (t, l) = transfer_for(&sphere, &env, layout, (200, 150));
+        bench(&format!("sphere 200x150, {}", layout.name()), &t, &l);
+    }
+}
+
+fn sphere_scene() -> Scene {
+    use glam::{Vec3, Vec4};
+    let (segments, rings) = (64u32, 32u32);
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    let mut tangents = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
+            let n = Vec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
+            positions.push(n * 0.5);
+            normals.push(n);
+            tangents.push(Vec4::new(phi.cos(), 0.0, -phi.sin(), 1.0));
+        }
+    }
+    let mut triangles = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b) = (i * segments + j, i * segments + (j + 1) % segments);
+            let (c, d) = ((i + 1) * segments + j, (i + 1) * segments + (j + 1) % segments);
+            if i != 0 {
+                triangles.push([a, c, b]);
+            }
+            if i != rings - 1 {
+                triangles.push([b, c, d]);
+            }
+        }
+    }
+    let mesh = glint::scene::Mesh { positions, normals, tangents: Some(tangents), uvs: None, triangles };
+    let bounds = glint::scene::Bounds::from_points(&mesh.positions).unwrap();
+    Scene {
+        source: "sphere".into(),
+        cameras: vec![glint::scene::default_camera(&bounds)],
+        mesh,
+        parts: Vec::new(),
+        mesh_count: 1,
+        bounds,
+        skipped_primitives: 0,
+        normal_fallbacks: 0,
+        warnings: Vec::new(),
+    }
+}
