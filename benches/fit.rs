@@ -15,6 +15,9 @@ use glint::transfer::{Transfer, TransferContext};
 use std::path::Path;
 use std::time::Instant;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -89,45 +92,5 @@ fn main() {
 }
 
 fn sphere_scene() -> Scene {
-    use glam::{Vec3, Vec4};
-    let (segments, rings) = (64u32, 32u32);
-    let mut positions = Vec::new();
-    let mut normals = Vec::new();
-    let mut tangents = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
-            positions.push(n * 0.5);
-            normals.push(n);
-            tangents.push(Vec4::new(phi.cos(), 0.0, -phi.sin(), 1.0));
-        }
-    }
-    let mut triangles = Vec::new();
-    for i in 0..rings {
-        for j in 0..segments {
-            let (a, b) = (i * segments + j, i * segments + (j + 1) % segments);
-            let (c, d) = ((i + 1) * segments + j, (i + 1) * segments + (j + 1) % segments);
-            if i != 0 {
-                triangles.push([a, c, b]);
-            }
-            if i != rings - 1 {
-                triangles.push([b, c, d]);
-            }
-        }
-    }
-    let mesh = glint::scene::Mesh { positions, normals, tangents: Some(tangents), uvs: None, triangles };
-    let bounds = glint::scene::Bounds::from_points(&mesh.positions).unwrap();
-    Scene {
-        source: "sphere".into(),
-        cameras: vec![glint::scene::default_camera(&bounds)],
-        mesh,
-        parts: Vec::new(),
-        mesh_count: 1,
-        bounds,
-        skipped_primitives: 0,
-        normal_fallbacks: 0,
-        warnings: Vec::new(),
-    }
+    common::scene_from_mesh(common::uv_sphere(0.5, 64, 32, true))
 }

@@ -9,18 +9,10 @@ use glint::light::LightSums;
 use glint::raster::visible_vertices;
 use glint::sphere::{LobeLayout, LobeSet, srbf};
 use glint::transfer::TransferContext;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 fn glint(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_glint")).args(args).output().expect("run glint")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("glint-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    run_glint!(args)
 }
 
 fn bake_json(out: &Path) -> (serde_json::Value, String) {
@@ -33,7 +25,7 @@ fn bake_json(out: &Path) -> (serde_json::Value, String) {
 
 #[test]
 fn bake_is_reused_and_bad_bakes_are_rebuilt() {
-    let dir = temp_dir("bakefile");
+    let dir = common::temp_dir("bakefile");
     let out = dir.join("teapot.bake");
     let (first, _) = bake_json(&out);
     for key in ["vertices", "rays_traced", "mean_cut_size", "seconds", "decisions", "transfer_seconds", "bytes_per_vertex"] {
@@ -79,7 +71,7 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
 
 #[test]
 fn decode_rejects_every_truncation() {
-    let dir = temp_dir("trunc");
+    let dir = common::temp_dir("trunc");
     let out = dir.join("b");
     bake_json(&out);
     let good = std::fs::read(out.join("bake.glint")).unwrap();

@@ -3,18 +3,10 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 fn glint(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_glint")).args(args).output().expect("run glint")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("glint-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    run_glint!(args)
 }
 
 /// Shape of an .npy file from its header.
@@ -31,7 +23,7 @@ fn npy_shape(path: &Path) -> Vec<usize> {
 
 #[test]
 fn fit_writes_a_material_and_a_reloadable_problem() {
-    let dir = temp_dir("clifit");
+    let dir = common::temp_dir("clifit");
     let scene = common::assets().join("glb/teapot.glb");
     let env = common::assets().join("hdr/small/courtyard_512.exr");
     let bake = dir.join("teapot.bake");

@@ -117,3 +117,19 @@ pub fn qp_objective(h: &[f64], q: &[f64], c: &[f64], n: usize) -> f64 {
     }
     f
 }
+
+/// Runs the built `glint` binary. Only for integration tests (CARGO_BIN_EXE_glint is set for them).
+#[macro_export]
+macro_rules! run_glint {
+    ($args:expr) => {
+        std::process::Command::new(env!("CARGO_BIN_EXE_glint")).args($args).output().expect("run glint")
+    };
+}
+
+/// A fresh, empty temporary folder named for the test and process.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("glint-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
