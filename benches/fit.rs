@@ -6,7 +6,7 @@
 //! field so that anisotropic lobes apply. 192 energy rows (anisotropic) / 32 (isotropic).
 
 use glint::bake::{BakeSettings, Baker};
-use glint::fit::problem::{ChannelSystem, ViewData, normal_equations};
+use glint::fit::problem::{ViewData, normal_equations, solve_rgb};
 use glint::fit::qp::{HotStart, QpSolver};
 use glint::light::LightSums;
 use glint::scene::Scene;
@@ -49,11 +49,7 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
     let weight: Vec<f64> = (0..n).map(|i| if i % 3 == 0 { 1.0 } else { 0.1 }).collect();
     let data = [ViewData { transfer, target: &target, weight: &weight }];
     let form = time(5, || (0..3).map(|c| normal_equations(&data, c, 0.5)).collect::<Vec<_>>());
-    let cold = time(5, || {
-        (0..3)
-            .map(|c| ChannelSystem::new(normal_equations(&data, c, 0.5), Some((&energy, 0.04)), 0.5).unwrap().solve(None).unwrap())
-            .collect::<Vec<_>>()
-    });
+    let cold = time(5, || solve_rgb(&data, Some((&energy, 0.04)), [0.5; 3]).unwrap());
     // Warm and hot re-solves after a small stroke (q changes by a few % on 10 % of the lobes).
     let eq = normal_equations(&data, 0, 0.5);
     let solver = QpSolver::new(&eq.h, eq.j, &energy.matrix(0.04), &vec![0.5; energy.rows()], energy.rows()).unwrap();

@@ -15,7 +15,6 @@
 use super::qp::{Constraint, QpError, QpSolver};
 use crate::brdf::EnergyTable;
 use crate::transfer::Transfer;
-use rayon::prelude::*;
 
 /// One view's contribution: its transfer and, per pixel, target radiance and least-squares weight.
 pub struct ViewData<'a> {
@@ -36,71 +35,50 @@ pub struct NormalEquations {
     pub pixels: usize,
 }
 
-/// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64 accumulation.
+/// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64.
 ///
-/// T is stored row-major per pixel, so H is accumulated as Σ_p w_p a_p a_pᵀ (upper triangle, the inner
-/// loop over contiguous lobes), over fixed chunks of 512 pixels summed in order: parallel, cache
-/// friendly, and deterministic whatever the thread count.
+/// A = √W·T (N × J, row-major as T is stored) is gathered once and H = AᵀA is one blocked GEMM (faer), split over a
+/// fixed two-way partition so the result does not depend on the thread pool's size.
 pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> NormalEquations {
     let j = views.first().map_or(0, |v| v.transfer.lobes);
-    // (view, pixel) list in order.
     let items: Vec<(usize, usize)> =
         views.iter().enumerate().flat_map(|(vi, v)| (0..v.weight.len().min(v.transfer.pixels.len())).map(move |p| (vi, p))).collect();
-    const CHUNK: usize = 512;
-    let partial: Vec<(Vec<f64>, Vec<f64>, f64, f64)> = items
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            let mut h = vec![0.0f64; j * j];
-            let mut r = vec![0.0f64; j];
-            let (mut constant, mut weight_sum) = (0.0, 0.0);
-            let mut a = vec![0.0f64; j];
-            for &(vi, p) in chunk {
-                let v = &views[vi];
-                let w = v.weight[p].max(0.0);
-                if w == 0.0 {
-                    continue;
-                }
-                for (x, t) in a.iter_mut().zip(v.transfer.t_row(p, channel)) {
-                    *x = *t as f64;
-                }
-                let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
-                let y = v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse;
-                for k in 0..j {
-                    let wk = w * a[k];
-                    if wk == 0.0 {
-                        continue;
-                    }
-                    let row = &mut h[k * j + k..(k + 1) * j];
-                    for (hh, x) in row.iter_mut().zip(&a[k..]) {
-                        *hh += wk * x;
-                    }
-                    r[k] += wk * y;
-                }
-                constant += w * y * y;
-                weight_sum += w;
-            }
-            (h, r, constant, weight_sum)
-        })
-        .collect();
+    let n = items.len();
+    let mut buf = vec![0.0f64; n * j];
+    let mut y = vec![0.0f64; n];
+    let mut weight_sum = 0.0;
+    for (i, &(vi, p)) in items.iter().enumerate() {
+        let v = &views[vi];
+        let w = v.weight[p].max(0.0);
+        let sw = w.sqrt();
+        for (x, t) in buf[i * j..(i + 1) * j].iter_mut().zip(v.transfer.t_row(p, channel)) {
+            *x = sw * *t as f64;
+        }
+        let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
+        y[i] = sw * (v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse);
+        weight_sum += w;
+    }
+    let a = faer::MatRef::from_row_major_slice(&buf, n, j);
+    let mut hm = faer::Mat::<f64>::zeros(j, j);
+    let par = faer::Par::Rayon(std::num::NonZeroUsize::new(2).unwrap_or(std::num::NonZeroUsize::MIN));
+    faer::linalg::matmul::matmul(hm.as_mut(), faer::Accum::Replace, a.transpose(), a, 1.0, par);
     let mut h = vec![0.0f64; j * j];
+    for r in 0..j {
+        for c in r..j {
+            // Symmetrise exactly (the GEMM's halves may differ in the last bit).
+            let v = 0.5 * (hm[(r, c)] + hm[(c, r)]);
+            h[r * j + c] = v;
+            h[c * j + r] = v;
+        }
+    }
     let mut r = vec![0.0f64; j];
-    let (mut constant, mut weight_sum) = (0.0, 0.0);
-    for (ph, pr, pc, pw) in partial {
-        for (a, b) in h.iter_mut().zip(&ph) {
-            *a += b;
-        }
-        for (a, b) in r.iter_mut().zip(&pr) {
-            *a += b;
-        }
-        constant += pc;
-        weight_sum += pw;
-    }
-    for a in 0..j {
-        for b in 0..a {
-            h[a * j + b] = h[b * j + a];
+    for (row, yi) in buf.chunks_exact(j.max(1)).zip(&y) {
+        for (rk, x) in r.iter_mut().zip(row) {
+            *rk += x * yi;
         }
     }
-    NormalEquations { j, h, r, constant, weight_sum, pixels: items.len() }
+    let constant = y.iter().map(|v| v * v).sum();
+    NormalEquations { j, h, r, constant, weight_sum, pixels: n }
 }
 
 /// The per-channel system with its solver, kept across strokes (H fixed, q changing).
@@ -157,4 +135,17 @@ impl ChannelSystem {
             coefficients: sol.c,
         })
     }
+}
+
+/// Solves the three channels: red cold, green and blue warm-started from the previous channel's active
+/// set (the channels differ only in the light's colour, so their active sets are alike). The result is
+/// the same as three cold solves (the solver is exact from any start); only the time differs.
+pub fn solve_rgb(views: &[ViewData], energy: Option<(&EnergyTable, f64)>, rho_d: [f64; 3]) -> Result<Vec<ChannelFit>, QpError> {
+    let mut fits: Vec<ChannelFit> = Vec::with_capacity(3);
+    for (c, &rho) in rho_d.iter().enumerate() {
+        let system = ChannelSystem::new(normal_equations(views, c, rho), energy, rho)?;
+        let warm = fits.last().map(|f| f.active.clone());
+        fits.push(system.solve(warm.as_deref())?);
+    }
+    Ok(fits)
 }

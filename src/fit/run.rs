@@ -8,7 +8,7 @@
 //! (zero-specular) material and say so.
 
 use super::material::{FitStats, Material};
-use super::problem::{ChannelFit, ChannelSystem, ViewData, normal_equations};
+use super::problem::{ChannelFit, ViewData, solve_rgb};
 use super::qp::QpError;
 use super::strokes::{ViewSpec, ViewStrokes, targets};
 use crate::bake::Cuts;
@@ -148,13 +148,8 @@ pub fn fit(
     }
     let energy = settings.energy_limit.then(|| EnergyTable::with_defaults(&lobes));
     let start = std::time::Instant::now();
-    let mut channels = Vec::new();
-    for c in 0..3 {
-        let data: Vec<ViewData> = views.iter().map(|v| ViewData { transfer: &v.transfer, target: &v.target, weight: &v.weight }).collect();
-        let eq = normal_equations(&data, c, settings.rho_d[c]);
-        let system = ChannelSystem::new(eq, energy.as_ref().map(|e| (e, settings.f0)), settings.rho_d[c])?;
-        channels.push(system.solve(None)?);
-    }
+    let data: Vec<ViewData> = views.iter().map(|v| ViewData { transfer: &v.transfer, target: &v.target, weight: &v.weight }).collect();
+    let channels = solve_rgb(&data, energy.as_ref().map(|e| (e, settings.f0)), settings.rho_d)?;
     let solve_seconds = start.elapsed().as_secs_f64();
     let stats = FitStats {
         residual_rms: std::array::from_fn(|c| channels[c].residual_rms),
