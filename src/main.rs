@@ -176,6 +176,8 @@ fn bake(args: &BakeArgs) -> Result<()> {
     };
     let scene_hash = file::hash_file(&args.scene)?;
     let env_hash = file::hash_file(&args.env)?;
+    let scene = glint::scene::import(&args.scene)?;
+    let env = glint::env::load(&args.env)?;
     let existing = out.join("bake.glint");
     let mut reused = None;
     if existing.exists() && !args.force {
@@ -190,8 +192,6 @@ fn bake(args: &BakeArgs) -> Result<()> {
     let (header, reused_flag) = match reused {
         Some(h) => (h, true),
         None => {
-            let scene = glint::scene::import(&args.scene)?;
-            let env = glint::env::load(&args.env)?;
             let baker = glint::bake::Baker::new(&scene, &env, settings)?;
             let bar = indicatif::ProgressBar::new(scene.mesh.positions.len() as u64);
             bar.set_style(
@@ -217,8 +217,6 @@ fn bake(args: &BakeArgs) -> Result<()> {
         }
     };
     // The view: transfer for it and for a rotated environment (no ray tracing: only new sums).
-    let scene = glint::scene::import(&args.scene)?;
-    let env = glint::env::load(&args.env)?;
     let camera = pick_view(&scene, args.camera.as_deref(), args.orbit.as_deref())?;
     let (fit_w, fit_h) = match &args.fit_size {
         Some(s) => parse_size(s)?,
