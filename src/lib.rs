@@ -11,11 +11,13 @@
 pub mod bake;
 pub mod brdf;
 pub mod env;
+pub mod export;
 pub mod fit;
 pub mod inspect;
 pub mod light;
 pub mod math;
 pub mod raster;
+pub mod render;
 pub mod scene;
 pub mod sphere;
 pub mod transfer;

@@ -31,6 +31,10 @@ pub struct LightSums {
     prefix_omega: Vec<f64>,
     /// prefix_moment[i] = Σ_{l<i} ∫_l ω dω (exact texel moments).
     prefix_moment: Vec<DVec3>,
+    /// prefix_radiant_moment[i][c] = Σ_{l<i} L_l,c ∫_l ω dω: per channel, the radiance-weighted moment
+    /// (its dot with a normal is the cosine-weighted power of leaves above the horizon; its direction is
+    /// where the light of a run comes from).
+    prefix_radiant_moment: Vec<[DVec3; 3]>,
 }
 
 /// An environment prepared for light sums at any rotation: radiance split at τ = 16 × the map's mean
@@ -144,22 +148,27 @@ impl LightSums {
         let mut prefix_power = Vec::with_capacity(n + 1);
         let mut prefix_omega = Vec::with_capacity(n + 1);
         let mut prefix_moment = Vec::with_capacity(n + 1);
-        let (mut p, mut o, mut m) = ([0.0f64; 3], 0.0f64, DVec3::ZERO);
+        let mut prefix_radiant_moment = Vec::with_capacity(n + 1);
+        let (mut p, mut o, mut m, mut rm) = ([0.0f64; 3], 0.0f64, DVec3::ZERO, [DVec3::ZERO; 3]);
         prefix_power.push(p);
         prefix_omega.push(o);
         prefix_moment.push(m);
+        prefix_radiant_moment.push(rm);
         for (i, l) in leaf_radiance.iter().enumerate() {
             let w = tree.leaf_solid_angles()[i];
+            let lm = tree.leaf_moments()[i];
             for c in 0..3 {
                 p[c] += w * l[c];
+                rm[c] += lm * l[c];
             }
             o += w;
-            m += tree.leaf_moments()[i];
+            m += lm;
             prefix_power.push(p);
             prefix_omega.push(o);
             prefix_moment.push(m);
+            prefix_radiant_moment.push(rm);
         }
-        Self { rotation_rad, leaf_radiance, prefix_power, prefix_omega, prefix_moment }
+        Self { rotation_rad, leaf_radiance, prefix_power, prefix_omega, prefix_moment, prefix_radiant_moment }
     }
 
     /// The rotation these sums were made for.
@@ -189,6 +198,13 @@ impl LightSums {
     #[inline]
     pub fn moment(&self, a: usize, b: usize) -> DVec3 {
         self.prefix_moment[b] - self.prefix_moment[a]
+    }
+
+    /// Per channel Σ L_l ∫_l ω dω over leaves [a, b): the radiance-weighted moment.
+    #[inline]
+    pub fn radiant_moment(&self, a: usize, b: usize) -> [DVec3; 3] {
+        let (pa, pb) = (&self.prefix_radiant_moment[a], &self.prefix_radiant_moment[b]);
+        [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]]
     }
 
     /// |C_k| L_k: the node's radiant power per unit area (Σ over its leaves of Ω L).

@@ -30,16 +30,77 @@ enum Command {
     Bake(BakeArgs),
     /// Fit the BRDF to painted strokes.
     Fit(FitArgs),
-    /// Render a fitted material: PRT, Monte Carlo reference (issue #5).
-    Render(Pending),
-    /// Export a fitted material: EXR table, glTF, USD, MERL (issue #6).
-    Export(Pending),
+    /// Render a fitted material: the PRT frame (tabulated p), or the Monte Carlo reference.
+    Render(RenderArgs),
+    /// Export a fitted material: p(h) EXR table, glTF (.glb), USD (.usda), MERL (.binary).
+    Export(ExportArgs),
     /// The interactive painting app (issue #7).
     App(Pending),
     /// Accuracy-against-time study (issue #8).
     Study(Pending),
-    /// The headless main job on the bundled sample (issue #5).
-    Demo(Pending),
+    /// The headless main job on the bundled sample: bake, fit the sample strokes, render, export.
+    Demo(DemoArgs),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// The bake made by `glint bake` (its folder or its bake.glint).
+    bake: PathBuf,
+    /// The material made by `glint fit`.
+    #[arg(long)]
+    material: PathBuf,
+    /// A camera of the scene, by name (default: the first camera, or the default camera).
+    #[arg(long, conflicts_with = "orbit")]
+    camera: Option<String>,
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    orbit: Option<Vec<f32>>,
+    /// Environment rotation about +Y in degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    rotate: f64,
+    /// Image size WxH (default: the camera's).
+    #[arg(long)]
+    size: Option<String>,
+    /// Render the Monte Carlo reference with this many samples per pixel instead of the PRT frame.
+    #[arg(long)]
+    reference: Option<u32>,
+    /// Exposure applied before tone mapping (PNG only).
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f32,
+    /// Output image: .exr (linear) or .png (tone-mapped).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct ExportArgs {
+    /// The material made by `glint fit`.
+    material: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
+    to: Option<PathBuf>,
+    /// Formats, comma-separated (default: all; see --list).
+    #[arg(long, value_delimiter = ',')]
+    formats: Vec<String>,
+    /// Put the material on this scene's mesh in the glTF and USD files (default: a preview sphere).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Resolution of the p(h) table.
+    #[arg(long, default_value_t = glint::export::EXPORT_TABLE_RESOLUTION)]
+    table_resolution: usize,
+    /// List the formats and exit.
+    #[arg(long)]
+    list: bool,
+}
+
+#[derive(clap::Args)]
+struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "demo-out")]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -135,11 +196,11 @@ fn main() -> ExitCode {
         None => default_job(),
         Some(Command::Bake(args)) => bake(&args),
         Some(Command::Fit(args)) => fit(&args),
-        Some(Command::Render(_)) => return not_available("render", 5),
-        Some(Command::Export(_)) => return not_available("export", 6),
+        Some(Command::Render(args)) => render(&args),
+        Some(Command::Export(args)) => export(&args),
         Some(Command::App(_)) => return not_available("app", 7),
         Some(Command::Study(_)) => return not_available("study", 8),
-        Some(Command::Demo(_)) => return not_available("demo", 5),
+        Some(Command::Demo(args)) => demo(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -285,21 +346,35 @@ fn bake(args: &BakeArgs) -> Result<()> {
     Ok(())
 }
 
-fn fit(args: &FitArgs) -> Result<()> {
+/// A bake read back with the inputs it was made from (checked unchanged).
+struct LoadedBake {
+    header: glint::bake::file::BakeHeader,
+    cuts: glint::bake::Cuts,
+    scene: glint::scene::Scene,
+    env: glint::env::EnvMap,
+    tangents: Option<Vec<glam::Vec4>>,
+}
+
+fn load_bake(path: &Path) -> Result<LoadedBake> {
     use glint::bake::file;
-    use glint::fit::{run, strokes};
-    let (header, cuts) = file::read(&args.bake)?;
+    let (header, cuts) = file::read(path)?;
     for (path, hash, what) in [(&header.scene_file, &header.scene_hash, "scene"), (&header.env_file, &header.env_hash, "environment")] {
         if &file::hash_file(path)? != hash {
             anyhow::bail!("the {what} {} changed since the bake; run glint bake again", path.display());
         }
     }
-    let &[r, g, b] = args.rho_d.as_slice() else { anyhow::bail!("--rho-d takes three numbers r,g,b") };
-    let text = std::fs::read_to_string(&args.strokes).with_context(|| format!("cannot read {}", args.strokes.display()))?;
-    let views = strokes::parse(&text).with_context(|| args.strokes.display().to_string())?;
     let scene = glint::scene::import(&header.scene_file)?;
     let env = glint::env::load(&header.env_file)?;
     let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+    Ok(LoadedBake { header, cuts, scene, env, tangents })
+}
+
+fn fit(args: &FitArgs) -> Result<()> {
+    use glint::fit::{run, strokes};
+    let LoadedBake { header, cuts, scene, env, tangents } = load_bake(&args.bake)?;
+    let &[r, g, b] = args.rho_d.as_slice() else { anyhow::bail!("--rho-d takes three numbers r,g,b") };
+    let text = std::fs::read_to_string(&args.strokes).with_context(|| format!("cannot read {}", args.strokes.display()))?;
+    let views = strokes::parse(&text).with_context(|| args.strokes.display().to_string())?;
     let settings = run::FitSettings {
         rho_d: [r, g, b],
         f0: args.f0,
@@ -400,19 +475,160 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
 }
 
 /// `glint` with no subcommand (`cargo run --release`): the main job that exists in this build. Until the
-/// app lands (issue #7) that is inspecting the bundled sample, with a note saying so.
+/// app lands (issue #7) that is the headless demo, with a note saying so.
 fn default_job() -> Result<()> {
-    let samples = samples_dir();
-    let scene = samples.join("bunny.glb");
-    let env = samples.join("studio_1k.exr");
-    eprintln!("glint: the painting app comes with issue #7 and the headless demo with issue #5; inspecting the bundled sample instead.");
-    inspect(&scene, Some(&env), false)
+    eprintln!("glint: the painting app comes with issue #7; running the headless demo (glint demo --out demo-out) instead.");
+    demo(&DemoArgs { out: PathBuf::from("demo-out") })
 }
 
 /// `./samples` when run from the repository, else the samples folder of the source tree it was built from.
 fn samples_dir() -> PathBuf {
     let local = PathBuf::from("samples");
     if local.join("bunny.glb").is_file() { local } else { Path::new(env!("CARGO_MANIFEST_DIR")).join("samples") }
+}
+
+fn read_material(path: &Path) -> Result<glint::fit::material::Material> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(glint::fit::material::Material::parse(&text).with_context(|| path.display().to_string())?)
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    use glint::render::{Prt, PrtSettings, Shading, Specular, table};
+    let loaded = load_bake(&args.bake)?;
+    let material = read_material(&args.material)?;
+    if !material.layout.is_isotropic() && loaded.tangents.is_none() {
+        anyhow::bail!("the material's layout {} is anisotropic but the scene has no tangent field", material.layout.name());
+    }
+    let lobes = material.lobes()?;
+    let mut camera = pick_view(&loaded.scene, args.camera.as_deref(), args.orbit.as_deref()).or_else(|e| {
+        if args.camera.is_none() && args.orbit.is_none() { Ok(glint::scene::default_camera(&loaded.scene.bounds)) } else { Err(e) }
+    })?;
+    let (w, h) = match &args.size {
+        Some(s) => parse_size(s)?,
+        None => (camera.width.max(1), camera.height.max(1)),
+    };
+    camera.aspect = w as f32 / h as f32;
+    let rotation = args.rotate.to_radians();
+    let set = glint::sphere::DirectionSet::cube(loaded.header.decisions.resolution)?;
+    let tree = glint::sphere::LightTree::build(&set);
+    let coefficients = [material.coefficients[0].as_slice(), material.coefficients[1].as_slice(), material.coefficients[2].as_slice()];
+    let start = std::time::Instant::now();
+    let (mut image, what) = match args.reference {
+        Some(spp) => {
+            if spp == 0 {
+                anyhow::bail!("--reference needs at least 1 sample per pixel");
+            }
+            let tracer = glint::bake::Tracer::new(&loaded.scene.mesh);
+            let offset = 1e-4 * loaded.scene.bounds.diagonal() as f64;
+            let m = glint::render::ExactMaterial { lobes: &lobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
+            let img = glint::render::render_reference(&loaded.scene.mesh, loaded.tangents.as_deref(), &tracer, offset, &loaded.env, rotation, m, &camera, w, h, spp, 1);
+            (img, format!("Monte Carlo reference, {spp} spp"))
+        }
+        None => {
+            let light = glint::light::LightSums::new(&loaded.env, &set, &tree, rotation);
+            let prt = Prt::new(&loaded.scene.mesh, &loaded.cuts, &tree, loaded.tangents.as_deref(), PrtSettings::default());
+            let t = table::PhTable::build(&lobes, coefficients, table::default_resolution(lobes.lambda()));
+            let img = prt.render(&light, &camera, w, h, &Shading { rho_d: material.rho_d, f0: material.f0, specular: Specular::Table(&t) });
+            (img, format!("PRT, p(h) table {}²", t.resolution()))
+        }
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    image.fill_background(&loaded.env, rotation, &camera);
+    image.write(&args.out, args.exposure)?;
+    if args.json {
+        println!("{}", serde_json::json!({"image": args.out, "width": w, "height": h, "renderer": what, "seconds": seconds, "object_pixels": image.covered_count()}));
+    } else {
+        println!("wrote {} ({w}x{h}, {what}, {seconds:.2} s, {} object pixels)", args.out.display(), image.covered_count());
+    }
+    Ok(())
+}
+
+fn export(args: &ExportArgs) -> Result<()> {
+    if args.list {
+        for e in glint_exporters::registry() {
+            println!("{:<6} {}", e.name(), e.extensions().join(", "));
+        }
+        return Ok(());
+    }
+    let (Some(material_path), Some(to)) = (&args.material, &args.to) else {
+        anyhow::bail!("glint export needs MATERIAL.json and --to DIR (or --list)");
+    };
+    let material = read_material(material_path)?;
+    let name = material_path.file_stem().and_then(|s| s.to_str()).unwrap_or("material").replace(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-'), "_");
+    let mut provenance = std::collections::BTreeMap::new();
+    provenance.insert("tool".into(), format!("glint {}", env!("CARGO_PKG_VERSION")));
+    provenance.insert("material_file".into(), material_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
+    provenance.insert("material_hash_fnv1a64".into(), glint::bake::file::hash_file(material_path)?);
+    provenance.insert("fit_residual_rms".into(), format!("{:?}", material.fit.residual_rms));
+    provenance.insert("fit_pixels".into(), material.fit.pixels.to_string());
+    let scene = match &args.scene {
+        Some(p) => {
+            let scene = glint::scene::import(p)?;
+            let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+            provenance.insert("scene_file".into(), p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
+            Some(glint::export::scene_mesh(&scene.mesh, tangents.as_deref()))
+        }
+        None => None,
+    };
+    if !(16..=4096).contains(&args.table_resolution) {
+        anyhow::bail!("--table-resolution {} is outside 16..=4096", args.table_resolution);
+    }
+    let desc = glint::export::material_desc(&material, &name, args.table_resolution, provenance)?;
+    std::fs::create_dir_all(to).with_context(|| format!("cannot create {}", to.display()))?;
+    let formats: Vec<&str> = args.formats.iter().map(|s| s.as_str()).collect();
+    let written = glint_exporters::export_all(&desc, scene.as_ref(), to, &formats)?;
+    for p in &written {
+        println!("wrote {}", p.display());
+    }
+    let f = &desc.fallback;
+    println!(
+        "glTF/USD fallback (pbrMetallicRoughness): base colour [{:.3}, {:.3}, {:.3}], metallic {:.2}, roughness {:.3}; relative RMS error against the fitted BRDF {:.1} %{}",
+        f.base_color[0], f.base_color[1], f.base_color[2], f.metallic, f.roughness, f.relative_error * 100.0,
+        if desc.isotropic { "" } else { " (isotropic fallback for an anisotropic material)" }
+    );
+    Ok(())
+}
+
+/// `glint demo`: the headless main job on the bundled sample.
+fn demo(args: &DemoArgs) -> Result<()> {
+    let samples = samples_dir();
+    let out = &args.out;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let exe = std::env::current_exe().context("cannot find the glint executable")?;
+    let run = |what: &str, argv: Vec<std::ffi::OsString>| -> Result<()> {
+        eprintln!("glint demo: {what}");
+        let status = std::process::Command::new(&exe).args(&argv).status().with_context(|| format!("cannot run {what}"))?;
+        if !status.success() {
+            anyhow::bail!("{what} failed ({status})");
+        }
+        Ok(())
+    };
+    let os = |s: &str| std::ffi::OsString::from(s);
+    let p = |p: PathBuf| p.into_os_string();
+    let bake_dir = out.join("bunny.bake");
+    run("bake the bunny under the studio", vec![os("bake"), p(samples.join("bunny.glb")), os("--env"), p(samples.join("studio_1k.exr")), os("--out"), p(bake_dir.clone())])?;
+    let zero = out.join("diffuse.json");
+    let material = out.join("bunny-highlight.json");
+    let strokes = samples.join("strokes/bunny-highlight.json");
+    run("fit the sample strokes", vec![os("fit"), p(bake_dir.clone()), os("--strokes"), p(strokes), os("--out"), p(material.clone())])?;
+    // "Before": the same material with its lobes off (the rendering the strokes painted over).
+    let mut before = read_material(&material)?;
+    for c in before.coefficients.iter_mut() {
+        c.iter_mut().for_each(|x| *x = 0.0);
+    }
+    glint_exporters::write_atomic(&zero, before.to_json().as_bytes())?;
+    for (what, m, extra, name) in [
+        ("render before", &zero, vec![], "before.png"),
+        ("render after", &material, vec![], "after.png"),
+        ("render after, light rotated 90°", &material, vec![os("--rotate"), os("90")], "after-rotated.png"),
+    ] {
+        let mut argv = vec![os("render"), p(bake_dir.clone()), os("--material"), p(m.clone()), os("--out"), p(out.join(name))];
+        argv.extend(extra);
+        run(what, argv)?;
+    }
+    run("export every format", vec![os("export"), p(material.clone()), os("--to"), p(out.join("export")), os("--scene"), p(samples.join("bunny.glb"))])?;
+    println!("demo written to {}: before.png, after.png, after-rotated.png, bunny-highlight.json, export/", out.display());
+    Ok(())
 }
 
 fn not_available(name: &str, issue: u32) -> ExitCode {

@@ -25,12 +25,17 @@ pub struct Fragment {
 
 /// Rasterises every triangle; returns the visible fragment of each covered pixel, row-major.
 pub fn rasterize(mesh: &Mesh, camera: &Camera, width: u32, height: u32) -> Vec<Fragment> {
+    rasterize_triangles(&mesh.positions, &mesh.triangles, camera, width, height)
+}
+
+/// [`rasterize`] over bare positions and triangles (e.g. a subdivided shading mesh).
+pub fn rasterize_triangles(positions: &[Vec3], triangles: &[[u32; 3]], camera: &Camera, width: u32, height: u32) -> Vec<Fragment> {
     let clip_from_world = camera.clip_from_world();
     let (w, h) = (width as usize, height as usize);
     let mut depth = vec![f32::INFINITY; w * h];
     let mut best: Vec<Option<Fragment>> = vec![None; w * h];
-    let clip: Vec<glam::Vec4> = mesh.positions.iter().map(|p| clip_from_world * p.extend(1.0)).collect();
-    for (t, tri) in mesh.triangles.iter().enumerate() {
+    let clip: Vec<glam::Vec4> = positions.iter().map(|p| clip_from_world * p.extend(1.0)).collect();
+    for (t, tri) in triangles.iter().enumerate() {
         let Some(c) = tri.iter().map(|&i| clip.get(i as usize).copied()).collect::<Option<Vec<_>>>() else { continue };
         if c.iter().any(|v| v.w.is_nan() || v.w <= 1e-6 || !v.is_finite()) {
             continue;

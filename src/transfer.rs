@@ -25,7 +25,8 @@ use crate::brdf::dbrdf::static_term;
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::scene::{Camera, Mesh};
-use crate::sphere::{Frame, LightTree, LobeSet, srbf};
+use crate::sphere::light_tree::{Partition, PartitionCone};
+use crate::sphere::{Frame, LightTree, LobeSet, hemi_oct, srbf};
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
@@ -51,10 +52,10 @@ impl LobeGrid {
         for cy in 0..size {
             for cx in 0..size {
                 // Bounding cap of the cell: centre and the largest angle to its corners and edge midpoints.
-                let centre = hemi_oct_decode((cx as f64 + 0.5) / size as f64, (cy as f64 + 0.5) / size as f64);
+                let centre = hemi_oct::decode((cx as f64 + 0.5) / size as f64, (cy as f64 + 0.5) / size as f64);
                 let mut radius = 0.0f64;
                 for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.5, 0.0), (0.0, 0.5), (1.0, 0.5), (0.5, 1.0)] {
-                    let p = hemi_oct_decode((cx as f64 + a) / size as f64, (cy as f64 + b) / size as f64);
+                    let p = hemi_oct::decode((cx as f64 + a) / size as f64, (cy as f64 + b) / size as f64);
                     radius = radius.max(p.dot(centre).clamp(-1.0, 1.0).acos());
                 }
                 radius *= 1.05;
@@ -78,28 +79,12 @@ impl LobeGrid {
     /// Candidate lobes for a local unit half-vector (z ≥ 0 expected; z < 0 is folded up).
     #[inline]
     pub fn candidates(&self, h: DVec3) -> &[u32] {
-        let (u, v) = hemi_oct_encode(h);
+        let (u, v) = hemi_oct::encode(h);
         let cx = ((u * self.size as f64) as usize).min(self.size - 1);
         let cy = ((v * self.size as f64) as usize).min(self.size - 1);
         let c = cy * self.size + cx;
         &self.lobes[self.offsets[c] as usize..self.offsets[c + 1] as usize]
     }
-}
-
-/// Hemi-octahedral map of the upper hemisphere onto [0, 1]².
-fn hemi_oct_encode(h: DVec3) -> (f64, f64) {
-    let z = h.z.abs();
-    let l1 = h.x.abs() + h.y.abs() + z;
-    let (px, py) = (h.x / l1, h.y / l1);
-    let (u, v) = (px + py, px - py);
-    ((u + 1.0) * 0.5, (v + 1.0) * 0.5)
-}
-
-fn hemi_oct_decode(u: f64, v: f64) -> DVec3 {
-    let (a, b) = (u * 2.0 - 1.0, v * 2.0 - 1.0);
-    let (px, py) = ((a + b) * 0.5, (a - b) * 0.5);
-    let z = 1.0 - px.abs() - py.abs();
-    DVec3::new(px, py, z.max(0.0)).normalize()
 }
 
 /// One pixel of the fit view.
@@ -158,9 +143,9 @@ pub struct TransferContext<'a> {
     grid: LobeGrid,
     /// Leaf ranges [first, end) of the shading partition, in order.
     shading: Vec<(u32, u32)>,
-    /// Per shading node: its axis and the (cos, sin) of a cone holding every leaf corner, to tell runs
-    /// wholly above a horizon without looking at their leaves.
-    shading_cones: Vec<(DVec3, f64, f64)>,
+    /// Per shading node: a cone holding every leaf corner, to tell runs wholly above a horizon without
+    /// looking at their leaves.
+    shading_cones: Vec<PartitionCone>,
 }
 
 /// A vertex cut as leaf ranges.
@@ -179,26 +164,7 @@ impl<'a> TransferContext<'a> {
     pub fn new(mesh: &'a Mesh, cuts: &'a Cuts, tree: &'a LightTree, lobes: &'a LobeSet, tangents: Option<&'a [Vec4]>, shading_angle: Option<f64>) -> Self {
         let sigma = srbf::sigma_from_lambda(lobes.lambda()).unwrap_or(0.08);
         let target = shading_angle.unwrap_or(0.25 * sigma).max(1e-6);
-        let mut shading = Vec::new();
-        let mut stack = vec![0usize];
-        // Depth-first, left before right: the ranges come out in leaf order.
-        while let Some(k) = stack.pop() {
-            let node = tree.nodes()[k];
-            if node.is_leaf() || node.cone_cos.clamp(-1.0, 1.0).acos() <= target {
-                shading.push((node.first, node.first + node.count));
-            } else {
-                stack.push(node.right as usize);
-                stack.push(node.left as usize);
-            }
-        }
-        let shading_cones = shading
-            .iter()
-            .map(|&(a, z)| {
-                let axis = tree.leaf_moments()[a as usize..z as usize].iter().copied().sum::<DVec3>().try_normalize().unwrap_or(DVec3::Z);
-                let cos = tree.leaf_corners()[a as usize..z as usize].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
-                (axis, cos, (1.0 - cos * cos).max(0.0).sqrt())
-            })
-            .collect();
+        let Partition { ranges: shading, cones: shading_cones } = tree.partition(target);
         Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_cones }
     }
 
@@ -267,9 +233,9 @@ impl<'a> TransferContext<'a> {
         let sample = PixelSample { x: f.x, y: f.y, triangle: f.triangle, bary: f.bary, position: position.as_vec3(), normal: normal.as_vec3() };
         let mut acc = vec![0.0f64; 3 * j_count];
         let mut e = [0.0f64; 3];
-        if wo.z <= 0.0 {
-            return (sample, vec![0.0; 3 * j_count], e);
-        }
+        // Where the interpolated shading normal faces away from the eye (silhouettes), the specular term
+        // is 0 and the diffuse term is kept: the convention every renderer shares.
+        let specular = wo.z > 0.0;
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
         let mut idx = [0usize; 3];
         let mut si = 0usize;
@@ -309,24 +275,10 @@ impl<'a> TransferContext<'a> {
             // A run wholly above the horizon: its exact moment gives the cosine integral. Otherwise each
             // leaf astride the horizon is clipped to it (exact too). The shading node's corner cone
             // settles most runs without looking at their leaves.
-            let (axis, cc, cs) = self.shading_cones[si];
-            let cb = axis.dot(normal);
-            let sb = (1.0 - cb * cb).max(0.0).sqrt();
-            let cone_above = cb * cc - sb * cs > 0.0 && sb * cc + cb * cs > 0.0;
-            let wholly_above = cone_above || self.tree.leaf_corners()[a..z].iter().all(|c| c.iter().all(|d| d.dot(normal) >= 0.0));
-            let cos_mass = if wholly_above {
+            let cos_mass = if self.tree.wholly_above(a, z, normal, &self.shading_cones[si]) {
                 moment.dot(normal)
             } else {
-                (a..z)
-                    .map(|i| {
-                        let corners = &self.tree.leaf_corners()[i];
-                        if corners.iter().all(|d| d.dot(normal) >= 0.0) {
-                            self.tree.leaf_moments()[i].dot(normal)
-                        } else {
-                            crate::sphere::direction_set::clipped_cosine_integral(corners, normal)
-                        }
-                    })
-                    .sum()
+                (a..z).map(|i| self.tree.leaf_cosine_integral(i, normal)).sum()
             };
             if cos_mass <= 0.0 || omega <= 0.0 {
                 continue;
@@ -337,7 +289,7 @@ impl<'a> TransferContext<'a> {
                 e[c] += weight * power[c];
             }
             let wi = frame.to_local(dir);
-            if wi.z <= 0.0 {
+            if !specular || wi.z <= 0.0 {
                 continue;
             }
             let s = static_term(wi, wo, f0);

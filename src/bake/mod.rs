@@ -223,6 +223,11 @@ impl<'a> Baker<'a> {
         Some((*p + *n * self.offset, *n))
     }
 
+    /// How far ray origins sit off the surface along the normal (world units).
+    pub fn ray_offset(&self) -> f64 {
+        self.offset
+    }
+
     /// The scene being baked.
     pub fn scene(&self) -> &Scene {
         self.scene

@@ -328,6 +328,20 @@ impl EnvMap {
         self.lookup_uv(u, v)
     }
 
+    /// Radiance of the texel holding direction `d` in the environment rotated by `rotation_rad` (the map
+    /// read as constant over each texel: what the Monte Carlo reference integrates). Non-finite `d`
+    /// returns black.
+    pub fn lookup_nearest(&self, d: DVec3, rotation_rad: f64) -> [f64; 3] {
+        let d = if rotation_rad == 0.0 { d } else { rotate_y(d, -rotation_rad) };
+        let (u, v) = direction_to_uv(d);
+        if !u.is_finite() || !v.is_finite() {
+            return [0.0; 3];
+        }
+        let x = ((u * self.width as f64).floor() as i64).rem_euclid(self.width as i64) as usize;
+        let y = ((v * self.height as f64).floor() as i64).clamp(0, self.height as i64 - 1) as usize;
+        self.texels[y * self.width + x].map(|c| c as f64)
+    }
+
     /// Bilinearly filtered radiance at equirectangular coordinates `(u, v)`; texel centres at
     /// `((i + 0.5)/W, (j + 0.5)/H)`. Wraps `u`, clamps `v`. Non-finite coordinates return black.
     pub fn lookup_uv(&self, u: f64, v: f64) -> [f64; 3] {

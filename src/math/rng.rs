@@ -55,6 +55,14 @@ impl Rng {
         DVec3::new(r * phi.cos(), r * phi.sin(), z)
     }
 
+    /// Two independent standard normal numbers (Box–Muller).
+    pub fn gaussian_pair(&mut self) -> (f64, f64) {
+        let u1 = 1.0 - self.next_f64(); // (0, 1]
+        let r = (-2.0 * u1.ln()).sqrt();
+        let phi = 2.0 * std::f64::consts::PI * self.next_f64();
+        (r * phi.cos(), r * phi.sin())
+    }
+
     /// A uniformly distributed unit vector on the hemisphere z > 0.
     pub fn hemisphere_vector(&mut self) -> DVec3 {
         let v = self.unit_vector();

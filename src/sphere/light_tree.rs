@@ -113,6 +113,73 @@ impl LightTree {
     pub fn depth(&self) -> usize {
         self.depth
     }
+
+    /// The partition of the sphere into the largest nodes whose leaf-centre cone half-angle is at most
+    /// `max_half_angle` (radians; leaves always qualify), in leaf order.
+    pub fn partition(&self, max_half_angle: f64) -> Partition {
+        let mut ranges = Vec::new();
+        let mut stack = vec![0usize];
+        // Depth-first, left before right: the ranges come out in leaf order.
+        while let Some(k) = stack.pop() {
+            let node = self.nodes[k];
+            if node.is_leaf() || node.cone_cos.clamp(-1.0, 1.0).acos() <= max_half_angle {
+                ranges.push((node.first, node.first + node.count));
+            } else {
+                stack.push(node.right as usize);
+                stack.push(node.left as usize);
+            }
+        }
+        let cones = ranges
+            .iter()
+            .map(|&(a, z)| {
+                let axis = self.leaf_moments[a as usize..z as usize].iter().copied().sum::<DVec3>().try_normalize().unwrap_or(DVec3::Z);
+                let cos = self.leaf_corners[a as usize..z as usize].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
+                PartitionCone { axis, cos, sin: (1.0 - cos * cos).max(0.0).sqrt() }
+            })
+            .collect();
+        Partition { ranges, cones }
+    }
+
+    /// True when every leaf of [a, z) lies wholly on the positive side of the plane with normal `n`:
+    /// checked first against `cone` (which bounds every leaf corner of a partition node holding the
+    /// range), then corner by corner.
+    #[inline]
+    pub fn wholly_above(&self, a: usize, z: usize, n: DVec3, cone: &PartitionCone) -> bool {
+        let cb = cone.axis.dot(n);
+        let sb = (1.0 - cb * cb).max(0.0).sqrt();
+        // Every direction of the cone is above the plane when the cone's lowest edge is.
+        (cb * cone.cos - sb * cone.sin > 0.0 && sb * cone.cos + cb * cone.sin > 0.0)
+            || self.leaf_corners[a..z].iter().all(|c| c.iter().all(|d| d.dot(n) >= 0.0))
+    }
+
+    /// ∫ max(ω·n, 0) dω over leaf i, exact (the texel moment when the texel is wholly above the plane,
+    /// else the texel clipped to it).
+    #[inline]
+    pub fn leaf_cosine_integral(&self, i: usize, n: DVec3) -> f64 {
+        let corners = &self.leaf_corners[i];
+        if corners.iter().all(|d| d.dot(n) >= 0.0) {
+            self.leaf_moments[i].dot(n)
+        } else {
+            super::direction_set::clipped_cosine_integral(corners, n)
+        }
+    }
+}
+
+/// Nodes of the tree no wider than a given angle, covering every leaf once (see [`LightTree::partition`]).
+#[derive(Debug, Clone, Default)]
+pub struct Partition {
+    /// Leaf ranges [first, end), in leaf order.
+    pub ranges: Vec<(u32, u32)>,
+    /// Per range, a cone holding every corner of its leaves.
+    pub cones: Vec<PartitionCone>,
+}
+
+/// A cone (axis, cos and sin of the half-angle) bounding a set of directions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PartitionCone {
+    pub axis: DVec3,
+    pub cos: f64,
+    pub sin: f64,
 }
 
 fn build_node(nodes: &mut Vec<TreeNode>, order: &mut [u32], first: usize, set: &DirectionSet, level: usize, depth: &mut usize) -> u32 {

@@ -227,12 +227,33 @@ impl LobeSet {
 
     /// Lobe j at h by the closed form (no table).
     pub fn eval_exact(&self, j: usize, h: DVec3) -> f64 {
+        self.eval_exact_lambda(j, h, self.lambda)
+    }
+
+    /// Lobe j's shape at h with another sharpness λ (same centre): the closed form.
+    pub fn eval_exact_lambda(&self, j: usize, h: DVec3, lambda: f64) -> f64 {
         if self.layout.is_isotropic() {
             let (cj, sj) = self.polar[j];
             let ch = h.z.clamp(-1.0, 1.0);
-            srbf::ring_lobe(ch, (1.0 - ch * ch).max(0.0).sqrt(), cj, sj, self.lambda)
+            srbf::ring_lobe(ch, (1.0 - ch * ch).max(0.0).sqrt(), cj, sj, lambda)
         } else {
-            srbf::gaussian(h.dot(self.centres[j]), self.lambda)
+            srbf::gaussian(h.dot(self.centres[j]), lambda)
+        }
+    }
+
+    /// The lobe's half-angle of support (G ≥ e^−cutoff) at sharpness λ, in radians: for ring lobes the
+    /// distance in polar angle, for Gaussians the angle to the centre.
+    pub fn support_angle(lambda: f64, cutoff_exponent: f64) -> f64 {
+        srbf::support_cosine(lambda, cutoff_exponent).acos()
+    }
+
+    /// Angular distance from h to lobe j's centre as the support test sees it (polar-angle difference
+    /// for ring lobes).
+    pub fn distance(&self, j: usize, h: DVec3) -> f64 {
+        if self.layout.is_isotropic() {
+            (h.z.clamp(-1.0, 1.0).acos() - self.polar[j].0.clamp(-1.0, 1.0).acos()).abs()
+        } else {
+            h.dot(self.centres[j]).clamp(-1.0, 1.0).acos()
         }
     }
 

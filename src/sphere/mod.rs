@@ -8,12 +8,14 @@
 //! - [`light_tree`]: the direction set arranged as a binary tree, each node with its solid angle, mean
 //!   direction and bounding cone.
 //! - [`frame`]: local shading frames (n, t, b).
+//! - [`hemi_oct`]: the hemi-octahedral map of the hemisphere onto the square (every p(h) table).
 //!
 //! Inputs: numbers and unit vectors. Outputs: plain data. Invariants: no IO; f64 throughout; local
 //! frames are z = normal, x = tangent, y = bitangent = n × t (times the tangent's handedness).
 
 pub mod direction_set;
 pub mod frame;
+pub mod hemi_oct;
 pub mod light_tree;
 pub mod lobes;
 pub mod srbf;

@@ -1,0 +1,194 @@
+#!/usr/bin/env python3
+"""Checks a glint USD export with usd-core (an independent reader).
+
+usage: check_usd.py STAGE.usda MATERIAL.json
+
+Opens the stage, validates it — stage metadata (defaultPrim, upAxis Y, metersPerUnit), the UsdShade
+wiring (ConnectableAPI, the Material's surface output resolving to a UsdPreviewSurface, the "glint"
+render-context output resolving to the glint_dbrdf_srbf shader), MaterialBindingAPI on a bound gprim,
+the table asset resolving beside the stage, UsdUtils.ComplianceChecker (when this usd-core has it) and
+the UsdValidation validators (when it has them) without errors — and compares every number of the lobe
+table (lambda, sigma, f0, rho_d, centres, coefficients; plus the fallback when the JSON has one) with
+glint's material JSON within float precision (relative 1e-6).
+
+Prints "check_usd: OK ..." and exits 0, or prints one line "check_usd: FAIL: <reason>" and exits 1.
+"""
+
+import json
+import math
+import os
+import sys
+import warnings
+
+REL = 1e-6
+ABS = 1e-30  # f32 flushes values below ~1e-38 to zero; anything that small is zero for a BRDF
+
+
+def fail(msg):
+    print("check_usd: FAIL: " + " ".join(str(msg).split()))
+    sys.exit(1)
+
+
+def close(a, b):
+    a, b = float(a), float(b)
+    return math.isfinite(a) and abs(a - b) <= REL * max(abs(a), abs(b)) + ABS
+
+
+def compare(label, got, want):
+    got = list(got)
+    want = list(want)
+    if len(got) != len(want):
+        fail(f"{label}: the stage has {len(got)} values, the material JSON {len(want)}")
+    for i, (g, w) in enumerate(zip(got, want)):
+        if not close(g, w):
+            fail(f"{label}[{i}]: stage {g!r} vs material JSON {w!r} (relative tolerance {REL})")
+
+
+def flat(rows):
+    return [float(x) for row in rows for x in row]
+
+
+def main():
+    if len(sys.argv) != 3:
+        fail("usage: check_usd.py STAGE.usda MATERIAL.json")
+    stage_path, json_path = sys.argv[1], sys.argv[2]
+    try:
+        from pxr import Sdf, Tf, Usd, UsdGeom, UsdShade, UsdUtils
+    except ImportError as e:
+        fail(f"usd-core is not importable ({e}); pip install usd-core")
+    try:
+        with open(json_path, encoding="utf-8") as f:
+            mat_json = json.load(f)
+    except (OSError, ValueError) as e:
+        fail(f"cannot read {json_path}: {e}")
+
+    try:
+        stage = Usd.Stage.Open(stage_path)
+    except Tf.ErrorException as e:
+        fail(f"usd-core cannot open {stage_path}: {e}")
+    if not stage:
+        fail(f"usd-core cannot open {stage_path}")
+
+    # Stage metadata.
+    if UsdGeom.GetStageUpAxis(stage) != UsdGeom.Tokens.y:
+        fail(f"upAxis is {UsdGeom.GetStageUpAxis(stage)}, not Y")
+    if not stage.HasAuthoredMetadata("metersPerUnit"):
+        fail("metersPerUnit is not authored")
+    if not stage.GetDefaultPrim():
+        fail("no defaultPrim")
+
+    # Exactly one material; its surface outputs.
+    materials = [UsdShade.Material(p) for p in stage.Traverse() if p.IsA(UsdShade.Material)]
+    if len(materials) != 1:
+        fail(f"expected one Material, found {len(materials)}")
+    material = materials[0]
+    if not UsdShade.ConnectableAPI(material.GetPrim()).IsContainer():
+        fail("the Material is not a connectable container")
+    preview, _, _ = material.ComputeSurfaceSource()
+    if not preview or preview.GetIdAttr().Get() != "UsdPreviewSurface":
+        fail("the Material's outputs:surface does not resolve to a UsdPreviewSurface shader")
+    glint, _, _ = material.ComputeSurfaceSource("glint")
+    if not glint or "glint" not in glint.GetSourceTypes():
+        fail("the Material's outputs:glint:surface does not resolve to a shader with a 'glint' source asset")
+    node = glint.GetShaderNodeForSourceType("glint")
+    if not node or not node.IsValid():
+        fail("Sdr cannot resolve the glint shader's definition (info:glint:sourceAsset + subIdentifier)")
+    missing = [n for n in ("lambda", "sigma", "centres", "coefficients_r", "coefficients_g", "coefficients_b", "rho_d", "f0", "table", "parameterisation") if not node.GetShaderInput(n)]
+    if missing:
+        fail(f"the glint shader's Sdr definition lacks inputs {missing}")
+    for shader in (preview, glint):
+        api = UsdShade.ConnectableAPI(shader.GetPrim())
+        if not api or api.IsContainer() or not shader.GetPrim().IsA(UsdShade.Shader):
+            fail(f"{shader.GetPath()} is not a connectable shader")
+    if preview.GetInput("useSpecularWorkflow").Get() != 0:
+        fail("useSpecularWorkflow is not 0")
+
+    # A gprim bound to it.
+    bound = []
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Gprim):
+            if not prim.HasAPI(UsdShade.MaterialBindingAPI):
+                fail(f"{prim.GetPath()} lacks MaterialBindingAPI")
+            m, _ = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+            if not m or m.GetPath() != material.GetPath():
+                fail(f"{prim.GetPath()} is not bound to {material.GetPath()}")
+            bound.append(prim)
+            if prim.IsA(UsdGeom.Mesh):
+                mesh = UsdGeom.Mesh(prim)
+                n = len(mesh.GetPointsAttr().Get() or [])
+                counts = mesh.GetFaceVertexCountsAttr().Get() or []
+                idx = mesh.GetFaceVertexIndicesAttr().Get() or []
+                normals = UsdGeom.PrimvarsAPI(prim).GetPrimvar("normals")
+                if n == 0 or sum(counts) != len(idx) or any(i < 0 or i >= n for i in idx):
+                    fail(f"{prim.GetPath()}: inconsistent topology")
+                if not normals or len(normals.Get()) != n or normals.GetInterpolation() != UsdGeom.Tokens.vertex:
+                    fail(f"{prim.GetPath()}: primvars:normals missing or not per vertex")
+    if not bound:
+        fail("no gprim is bound to the material")
+
+    # The table asset resolves beside the stage.
+    table = glint.GetInput("table").Get()
+    if not table or not table.resolvedPath or not os.path.isfile(table.resolvedPath):
+        fail(f"the table asset {table} does not resolve to a file")
+    if glint.GetInput("parameterisation").Get() != "hemi-octahedral":
+        fail("parameterisation is not hemi-octahedral")
+
+    # UsdUtils.ComplianceChecker (removed from usd-core 26; UsdValidation replaces it).
+    checked = []
+    if hasattr(UsdUtils, "ComplianceChecker"):
+        warnings.filterwarnings("ignore", category=DeprecationWarning)  # deprecated in 26, still the asked-for check
+        checker = UsdUtils.ComplianceChecker(arkit=False, skipARKitRootLayerCheck=False, rootPackageOnly=False, skipVariants=False, verbose=False)
+        checker.CheckCompliance(stage_path)
+        problems = list(checker.GetErrors()) + list(checker.GetFailedChecks())
+        if problems:
+            fail(f"ComplianceChecker: {problems[0]} ({len(problems)} problem(s))")
+        checked.append("ComplianceChecker")
+    try:
+        from pxr import UsdValidation
+    except ImportError:
+        UsdValidation = None
+    if UsdValidation is not None:
+        registry = UsdValidation.ValidationRegistry()
+        validators = registry.GetOrLoadAllValidators()
+        context = UsdValidation.ValidationContext(validators)
+        errors = [e for e in context.Validate(stage) if e.GetType() == UsdValidation.ValidationErrorType.Error]
+        if errors:
+            e = errors[0]
+            fail(f"UsdValidation {e.GetIdentifier()}: {e.GetMessage()} ({len(errors)} error(s))")
+        checked.append(f"UsdValidation ({len(validators)} validators)")
+    if not checked:
+        fail("this usd-core has neither UsdUtils.ComplianceChecker nor UsdValidation")
+
+    # Every number of the lobe table.
+    def value(name):
+        inp = glint.GetInput(name)
+        if not inp:
+            fail(f"the glint shader has no input '{name}'")
+        return inp.Get()
+
+    for key in ("lambda", "sigma", "f0"):
+        compare(key, [value(key)], [mat_json[key]])
+    compare("rho_d", list(value("rho_d")), mat_json["rho_d"])
+    compare("centres", flat(value("centres")), flat(mat_json["centres"]))
+    coefficients = mat_json["coefficients"]
+    if len(coefficients) != 3:
+        fail("the material JSON's coefficients are not 3 x J")
+    for k, ch in enumerate("rgb"):
+        compare(f"coefficients[{k}]", list(value(f"coefficients_{ch}")), coefficients[k])
+    if "fallback" in mat_json:
+        fb = mat_json["fallback"]
+        compare("fallback.base_color", list(preview.GetInput("diffuseColor").Get()), fb["base_color"])
+        compare("fallback.metallic", [preview.GetInput("metallic").Get()], [fb["metallic"]])
+        compare("fallback.roughness", [preview.GetInput("roughness").Get()], [fb["roughness"]])
+
+    j = len(mat_json["centres"])
+    print(f"check_usd: OK {stage_path}: {len(bound)} bound gprim(s), J = {j}, {' + '.join(checked)} clean, lobe table matches within {REL}")
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except SystemExit:
+        raise
+    except Exception as e:  # an unexpected failure is still one line
+        fail(f"{type(e).__name__}: {e}")

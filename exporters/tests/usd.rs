@@ -1,0 +1,62 @@
+//! USD export checked by usd-core (`exporters/python/check_usd.py`): stage metadata, UsdShade wiring,
+//! binding, compliance checks, and every number of the lobe table against the material JSON.
+//!
+//! Inputs: the fixture material, with a scene mesh and without. Outputs: pass/fail.
+//! Invariants: fails in CI when Python/usd-core is missing.
+
+mod common;
+
+use common::*;
+use glint_exporters::{Exporter, UsdExporter};
+use std::process::Command;
+
+fn check(scene: bool, isotropic_fallback: bool) {
+    let Some(py) = python("pxr, numpy") else { return };
+    let tag = format!("usd-{scene}-{isotropic_fallback}");
+    let dir = temp_dir(&tag);
+    let mut desc = material("bunny-v2.final", 64);
+    if isotropic_fallback {
+        desc.fallback.anisotropy = None;
+    }
+    let mesh = scene_mesh();
+    let files = UsdExporter.export(&desc, scene.then_some(&mesh), &dir).unwrap();
+    assert_eq!(files.len(), 2, "{files:?}");
+    let mut json = desc.lobe_table_json();
+    json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness });
+    let json_path = dir.join("material.json");
+    std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    let script = workspace().join("exporters/python/check_usd.py");
+    let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("bunny-v2.final.usda")).arg(&json_path));
+    assert!(ok, "check_usd.py failed:\n{out}\n{err}");
+    assert!(out.contains("OK"), "{out}");
+    eprintln!("{}", out.trim());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn usd_with_a_scene_passes_usd_core() {
+    check(true, false);
+}
+
+#[test]
+fn usd_material_only_passes_usd_core() {
+    check(false, true);
+}
+
+/// The checker itself must catch a wrong number (so a pass means something).
+#[test]
+fn check_usd_catches_a_mismatch() {
+    let Some(py) = python("pxr, numpy") else { return };
+    let dir = temp_dir("usd-mismatch");
+    let desc = material("m", 16);
+    UsdExporter.export(&desc, None, &dir).unwrap();
+    let mut json = desc.lobe_table_json();
+    json["coefficients"][1][5] = serde_json::json!(desc.coefficients[1][5] * (1.0 + 1e-5) + 1e-9);
+    let json_path = dir.join("material.json");
+    std::fs::write(&json_path, json.to_string()).unwrap();
+    let script = workspace().join("exporters/python/check_usd.py");
+    let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("m.usda")).arg(&json_path));
+    assert!(!ok, "a mismatch passed:\n{out}\n{err}");
+    assert!(out.contains("coefficients[1][5]") && out.trim().lines().count() == 1, "{out}{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
