@@ -116,10 +116,23 @@ pub fn fit_fallback(table: &PhTable, rho_d: [f64; 3], f0: f64) -> PbrFallback {
     PbrFallback { base_color: best.2, metallic: best.0, roughness: best.1, anisotropy: None, relative_error: if norm > 0.0 { (best.3 / norm).sqrt() } else { 0.0 } }
 }
 
-/// The MERL table of the material's isotropic projection (the BRDF averaged over 8 rotations about
-/// the normal; exact for isotropic layouts, where one suffices).
-pub fn merl_table(table: &PhTable, rho_d: [f64; 3], f0: f64, isotropic: bool) -> MerlTable {
-    let rotations = if isotropic { 1 } else { 8 };
+/// The MERL table of the material's isotropic projection: for isotropic layouts the exact lobe sum
+/// (ring lobes depend on h·n only, so no averaging is needed); for anisotropic ones the BRDF from the
+/// table averaged over 8 rotations about the normal.
+pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> MerlTable {
+    let (rho_d, f0) = (material.rho_d, material.f0);
+    if material.layout.is_isotropic() {
+        return MerlTable::sample(|wi, wo| {
+            let (wi, wo) = (DVec3::from(wi), DVec3::from(wo));
+            if wi.z <= 0.0 || wo.z <= 0.0 {
+                return [0.0; 3];
+            }
+            let Some(h) = (wi + wo).try_normalize() else { return rho_d.map(|r| r / PI) };
+            let s = static_term(wi, wo, f0);
+            std::array::from_fn(|c| rho_d[c] / PI + lobes.p(&material.coefficients[c], h) * s)
+        });
+    }
+    let rotations = 8;
     MerlTable::sample(|wi, wo| {
         let (wi, wo) = (DVec3::from(wi), DVec3::from(wo));
         let mut acc = [0.0; 3];
@@ -143,7 +156,7 @@ pub fn material_desc(material: &Material, name: &str, table_resolution: usize, p
     let table = PhTable::build(&lobes, coefficients, table_resolution);
     let isotropic = material.layout.is_isotropic();
     let fallback = fit_fallback(&table, material.rho_d, material.f0);
-    let merl = merl_table(&table, material.rho_d, material.f0, isotropic);
+    let merl = merl_table(material, &lobes, &table);
     Ok(MaterialDesc {
         name: name.to_string(),
         model: material.model.clone(),
