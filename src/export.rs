@@ -153,7 +153,7 @@ pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> Merl
 pub fn material_desc(material: &Material, name: &str, table_resolution: usize, provenance: BTreeMap<String, String>) -> Result<MaterialDesc, SphereError> {
     let lobes: LobeSet = material.lobes()?;
     let coefficients = [material.coefficients[0].as_slice(), material.coefficients[1].as_slice(), material.coefficients[2].as_slice()];
-    let table = PhTable::build(&lobes, coefficients, table_resolution);
+    let table = PhTable::build_unfiltered(&lobes, coefficients, table_resolution);
     let isotropic = material.layout.is_isotropic();
     let fallback = fit_fallback(&table, material.rho_d, material.f0);
     let merl = merl_table(material, &lobes, &table);
@@ -201,7 +201,7 @@ mod tests {
         // base colour ≈ 0.6, error small.
         let lobes = LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 8 }, 20.0).unwrap();
         let zero = vec![0.0; lobes.len()];
-        let table = PhTable::build(&lobes, [&zero, &zero, &zero], 64);
+        let table = PhTable::build_unfiltered(&lobes, [&zero, &zero, &zero], 64);
         let fb = fit_fallback(&table, [0.6, 0.3, 0.1], 0.04);
         println!("{fb:?}");
         assert!(fb.metallic <= 0.1, "{fb:?}");

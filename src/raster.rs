@@ -112,14 +112,12 @@ fn edge(a: Vec3, b: Vec3, p: Vec3) -> f32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::scene::{Bounds, orbit_camera};
 
-    #[test]
-    fn a_quad_facing_the_camera_covers_its_projected_area() {
-        // A unit square at z = 0 seen from +Z: its pixel count matches the projected area, and the
-        // barycentric-interpolated positions land where the camera ray through the pixel meets z = 0.
+    /// A unit square at z = 0 (two triangles) and a 200×200 camera on +Z looking at it.
+    pub(crate) fn unit_quad_scene() -> (Mesh, Camera) {
         let mesh = Mesh {
             positions: vec![Vec3::new(-0.5, -0.5, 0.0), Vec3::new(0.5, -0.5, 0.0), Vec3::new(0.5, 0.5, 0.0), Vec3::new(-0.5, 0.5, 0.0)],
             normals: vec![Vec3::Z; 4],
@@ -128,7 +126,14 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
         };
         let bounds = Bounds { min: Vec3::new(-1.0, -1.0, -0.1), max: Vec3::new(1.0, 1.0, 0.1) };
-        let camera = orbit_camera(&bounds, 0.0, 0.0, 0.0, 200, 200);
+        (mesh, orbit_camera(&bounds, 0.0, 0.0, 0.0, 200, 200))
+    }
+
+    #[test]
+    fn a_quad_facing_the_camera_covers_its_projected_area() {
+        // A unit square at z = 0 seen from +Z: its pixel count matches the projected area, and the
+        // barycentric-interpolated positions land where the camera ray through the pixel meets z = 0.
+        let (mesh, camera) = unit_quad_scene();
         let frags = rasterize(&mesh, &camera, 200, 200);
         let eye = camera.eye();
         let dist = eye.z;

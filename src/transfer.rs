@@ -20,7 +20,7 @@
 //! Invariants: no ray tracing (visibility comes from the bake; a new view or rotation only re-sums);
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
-use crate::bake::Cuts;
+use crate::bake::{Cuts, Span, for_each_run};
 use crate::brdf::dbrdf::static_term;
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
@@ -148,14 +148,6 @@ pub struct TransferContext<'a> {
     shading_cones: Vec<PartitionCone>,
 }
 
-/// A vertex cut as leaf ranges.
-#[derive(Debug, Clone, Copy)]
-struct Span {
-    first: u32,
-    end: u32,
-    v: f32,
-}
-
 impl<'a> TransferContext<'a> {
     /// `shading_angle`: the largest cone half-angle (radians) of a shading node; `None` uses an eighth of
     /// the lobe width in wi-space (σ_wi = 2σ), i.e. σ/4 (nodes about σ/2 across). Measured on the bunny
@@ -174,13 +166,7 @@ impl<'a> TransferContext<'a> {
     }
 
     fn spans(&self, v: usize) -> Vec<Span> {
-        self.cuts
-            .cut(v)
-            .map(|(k, vis)| {
-                let node = self.tree.nodes()[k as usize];
-                Span { first: node.first, end: node.first + node.count, v: vis }
-            })
-            .collect()
+        self.cuts.spans(v, self.tree).collect()
     }
 
     /// T and E for the pixels of `camera` at `width`×`height`, environment sums `light`, Fresnel F0.
@@ -237,39 +223,11 @@ impl<'a> TransferContext<'a> {
         // is 0 and the diffuse term is kept: the convention every renderer shares.
         let specular = wo.z > 0.0;
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
-        let mut idx = [0usize; 3];
-        let mut si = 0usize;
-        let mut pos = 0u32;
         let leaves = self.tree.leaf_count() as u32;
-        while pos < leaves && si < self.shading.len() {
-            while si < self.shading.len() && self.shading[si].1 <= pos {
-                si += 1;
-            }
-            let Some(&(_, shading_end)) = self.shading.get(si) else { break };
-            let mut next = shading_end;
-            let mut vis = 0.0f64;
-            for v in 0..3 {
-                let list = vertex_spans[v];
-                while idx[v] < list.len() && list[idx[v]].end <= pos {
-                    idx[v] += 1;
-                }
-                if let Some(sp) = list.get(idx[v]) {
-                    if sp.first <= pos {
-                        vis += b[v] * sp.v as f64;
-                        next = next.min(sp.end);
-                    } else {
-                        next = next.min(sp.first);
-                    }
-                }
-            }
-            let (a, z) = (pos as usize, next as usize);
-            pos = next;
-            if vis <= 0.0 {
-                continue;
-            }
+        for_each_run(&vertex_spans, &b, &self.shading, leaves, |a, z, vis, si| {
             let omega = light.omega(a, z);
             let moment = light.moment(a, z);
-            let Some(dir) = moment.try_normalize() else { continue };
+            let Some(dir) = moment.try_normalize() else { return };
             // Σ Ω max(d·n, 0) over the run: exact from the moment when the whole run is above the
             // horizon, else leaf by leaf.
             // A run wholly above the horizon: its exact moment gives the cosine integral. Otherwise each
@@ -281,7 +239,7 @@ impl<'a> TransferContext<'a> {
                 (a..z).map(|i| self.tree.leaf_cosine_integral(i, normal)).sum()
             };
             if cos_mass <= 0.0 || omega <= 0.0 {
-                continue;
+                return;
             }
             let power = light.power(a, z);
             let weight = vis * cos_mass / omega;
@@ -290,12 +248,12 @@ impl<'a> TransferContext<'a> {
             }
             let wi = frame.to_local(dir);
             if !specular || wi.z <= 0.0 {
-                continue;
+                return;
             }
             let s = static_term(wi, wo, f0);
-            let Some(h) = (wi + wo).try_normalize() else { continue };
+            let Some(h) = (wi + wo).try_normalize() else { return };
             if s <= 0.0 {
-                continue;
+                return;
             }
             let ws = weight * s;
             let wp = [ws * power[0], ws * power[1], ws * power[2]];
@@ -310,7 +268,7 @@ impl<'a> TransferContext<'a> {
                 acc[j_count + j] += wp[1] * g;
                 acc[2 * j_count + j] += wp[2] * g;
             }
-        }
+        });
         (sample, acc.iter().map(|&x| x as f32).collect(), e)
     }
 }

@@ -14,6 +14,7 @@
 pub mod cuts;
 pub mod decisions;
 pub mod file;
+pub mod runs;
 pub mod tracer;
 
 use crate::env::EnvMap;
@@ -24,6 +25,7 @@ pub use decisions::{Decisions, FrameSource};
 use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+pub use runs::{Span, for_each_run};
 pub use tracer::Tracer;
 
 /// Bake parameters (each a knob of the accuracy study).

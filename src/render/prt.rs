@@ -27,7 +27,7 @@
 
 use super::image::Image;
 use super::table::{PhTable, filtered_exact};
-use crate::bake::Cuts;
+use crate::bake::{Cuts, Span, for_each_run};
 use crate::brdf::dbrdf::static_term;
 use crate::light::LightSums;
 use crate::raster::{rasterize, rasterize_triangles};
@@ -211,13 +211,6 @@ fn subdivision(mesh: &Mesh, camera: &Camera, width: u32, height: u32, tris: &[[u
     k
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Span {
-    first: u32,
-    end: u32,
-    v: f32,
-}
-
 /// What stays fixed across frames: the cuts as leaf ranges and the render partition.
 pub struct Prt<'a> {
     mesh: &'a Mesh,
@@ -236,10 +229,7 @@ impl<'a> Prt<'a> {
         let mut spans = Vec::with_capacity(cuts.nodes.len());
         span_offsets.push(0);
         for v in 0..cuts.vertex_count() {
-            for (k, vis) in cuts.cut(v) {
-                let node = tree.nodes()[k as usize];
-                spans.push(Span { first: node.first, end: node.first + node.count, v: vis });
-            }
+            spans.extend(cuts.spans(v, tree));
             span_offsets.push(spans.len() as u32);
         }
         let partition = tree.partition(settings.partition_deg.to_radians().max(1e-6));
@@ -301,39 +291,13 @@ impl<'a> Prt<'a> {
         let (ranges, cones) = (&self.partition.ranges, &self.partition.cones);
         let leaves = self.tree.leaf_count() as u32;
         let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
-        let (mut pos, mut si, mut idx) = (0u32, 0usize, [0usize; 3]);
-        while pos < leaves && si < ranges.len() {
-            while si < ranges.len() && ranges[si].1 <= pos {
-                si += 1;
-            }
-            let Some(&(_, part_end)) = ranges.get(si) else { break };
-            let mut next = part_end;
-            let mut vis = 0.0f64;
-            for c in 0..count {
-                let list = lists[c];
-                while idx[c] < list.len() && list[idx[c]].end <= pos {
-                    idx[c] += 1;
-                }
-                if let Some(sp) = list.get(idx[c]) {
-                    if sp.first <= pos {
-                        vis += weights[c] * sp.v as f64;
-                        next = next.min(sp.end);
-                    } else {
-                        next = next.min(sp.first);
-                    }
-                }
-            }
-            let (a, z) = (pos as usize, next as usize);
-            pos = next;
-            if vis <= 0.0 {
-                continue;
-            }
+        for_each_run(&lists[..count], &weights[..count], ranges, leaves, |a, z, vis, si| {
             let cone = &cones[si];
             // A partition node wholly below the horizon contributes nothing.
             let cb = cone.axis.dot(n);
             let sb = (1.0 - cb * cb).max(0.0).sqrt();
             if cb < 0.0 && cb * cone.cos + sb * cone.sin <= 0.0 {
-                continue;
+                return;
             }
             let moment = light.radiant_moment(a, z);
             let cos_power: [f64; 3] = if self.tree.wholly_above(a, z, n, cone) {
@@ -352,24 +316,24 @@ impl<'a> Prt<'a> {
                 acc
             };
             if cos_power.iter().all(|&x| x <= 0.0) {
-                continue;
+                return;
             }
             for c in 0..3 {
                 e[c] += vis * cos_power[c];
             }
             if matches!(specular, Specular::None) {
-                continue;
+                return;
             }
             let lum_moment = moment[0] * LUMINANCE[0] + moment[1] * LUMINANCE[1] + moment[2] * LUMINANCE[2];
-            let Some(dir) = lum_moment.try_normalize() else { continue };
+            let Some(dir) = lum_moment.try_normalize() else { return };
             let wi = frame.to_local(dir);
             if wi.z <= 0.0 {
-                continue;
+                return;
             }
-            let Some(h) = (wi + wo).try_normalize() else { continue };
+            let Some(h) = (wi + wo).try_normalize() else { return };
             let s = static_term(wi, wo, shading.f0);
             if s <= 0.0 {
-                continue;
+                return;
             }
             let spread = if self.settings.prefilter {
                 let power = light.power(a, z);
@@ -392,7 +356,7 @@ impl<'a> Prt<'a> {
             for c in 0..3 {
                 spec[c] += vis * cos_power[c] * s * p[c];
             }
-        }
+        });
         std::array::from_fn(|c| shading.rho_d[c] / std::f64::consts::PI * e[c] + spec[c])
     }
 
@@ -435,19 +399,10 @@ pub fn interpolate(sm: &ShadingMesh, radiance: &[[f64; 3]], camera: &Camera, wid
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Bounds, orbit_camera};
 
     #[test]
     fn subdivided_shading_mesh_is_watertight_and_covers_the_same_pixels() {
-        let mesh = Mesh {
-            positions: vec![Vec3::new(-0.5, -0.5, 0.0), Vec3::new(0.5, -0.5, 0.0), Vec3::new(0.5, 0.5, 0.0), Vec3::new(-0.5, 0.5, 0.0)],
-            normals: vec![Vec3::Z; 4],
-            tangents: None,
-            uvs: None,
-            triangles: vec![[0, 1, 2], [0, 2, 3]],
-        };
-        let bounds = Bounds { min: Vec3::new(-1.0, -1.0, -0.1), max: Vec3::new(1.0, 1.0, 0.1) };
-        let camera = orbit_camera(&bounds, 0.0, 0.0, 0.0, 200, 200);
+        let (mesh, camera) = crate::raster::tests::unit_quad_scene();
         let coarse = shading_mesh(&mesh, &camera, 200, 200, 0.0);
         assert_eq!((coarse.subdivision, coarse.points.len(), coarse.triangles.len()), (1, 4, 2));
         let fine = shading_mesh(&mesh, &camera, 200, 200, 10.0);

@@ -180,7 +180,7 @@ impl<'a> Brdf<'a> {
             }
             let g = self.m.lobes.eval_exact(j, h);
             for c in 0..3 {
-                p[c] += self.m.coefficients[c][j] * g;
+                p[c] += self.m.coefficients[c].get(j).copied().unwrap_or(0.0) * g;
             }
         }
         std::array::from_fn(|c| diffuse[c] + p[c] * s)

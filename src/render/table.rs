@@ -52,6 +52,15 @@ pub fn default_resolution(lambda: f64) -> usize {
 impl PhTable {
     /// Tabulates p(h) = Σ_j c_j G_j(h) per channel at `resolution` (level 0) and its pre-filtered levels.
     pub fn build(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize) -> Self {
+        Self::build_levels(lobes, coefficients, resolution, true)
+    }
+
+    /// Level 0 only (what is exported; lookups with a spread then read level 0).
+    pub fn build_unfiltered(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize) -> Self {
+        Self::build_levels(lobes, coefficients, resolution, false)
+    }
+
+    fn build_levels(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize, filtered: bool) -> Self {
         let lambda = lobes.lambda();
         let resolution = resolution.clamp(16, 8192);
         // Lobes with any positive coefficient.
@@ -66,7 +75,7 @@ impl PhTable {
             levels.push(tabulate(lobes, &active, coefficients, lambda_l, lambda_l / lambda, res));
             level += 1;
             // Stop once the lobes are nearly flat (λ < ¼) or after 40 levels (λ up to 2^20).
-            if lambda_l < 0.25 || level >= 40 {
+            if !filtered || lambda_l < 0.25 || level >= 40 {
                 break;
             }
         }
@@ -167,7 +176,7 @@ fn tabulate(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3], lambda
                 }
                 let g = lobes.eval_exact_lambda(j, h, lambda_l) * scale;
                 for c in 0..3 {
-                    p[c] += coefficients[c][j].max(0.0) * g;
+                    p[c] += coefficients[c].get(j).copied().unwrap_or(0.0).max(0.0) * g;
                 }
             }
             p.map(|v| v as f32)
