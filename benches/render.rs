@@ -1,0 +1,57 @@
+//! Render benchmarks (issue #5): `cargo bench --bench render`. Prints median times of the CPU PRT frame
+//! (shade the view's points, interpolate; 2 threads here) and of building the p(h) table.
+//!
+//! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k, baked
+//! with the default settings; an isotropic material with three ring lobes (J = 24, σ = π/40); the
+//! scene's default camera at 160×120 and 640×480; the default shading density (1-pixel shading
+//! triangles) and vertex shading only.
+
+use glint::bake::{BakeSettings, Baker};
+use glint::light::LightSums;
+use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
+use glint::render::table::{PhTable, default_resolution};
+use glint::sphere::{LobeLayout, LobeSet, srbf};
+use std::time::Instant;
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
+    median((0..reps).map(|_| { let t = Instant::now(); std::hint::black_box(f()); t.elapsed().as_secs_f64() }).collect())
+}
+
+fn main() {
+    let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let mut c = vec![0.0; lobes.len()];
+    (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
+    let coefficients = [c.as_slice(), c.as_slice(), c.as_slice()];
+    let t_table = time(5, || PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda())));
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    println!("p(h) table {}² with {} filtered levels ({:.1} MB): build {:.1} ms", table.resolution(), table.level_count(), table.bytes() as f64 / 1e6, t_table * 1e3);
+    let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
+    println!("| scene | vertices | size | shading | subdivision | points | frame (s) | fps |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (mesh, env) in [("bunny", "hdr/small/studio_512.exr"), ("dragon_100k", "hdr/courtyard_1k.exr")] {
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let env = glint::env::load(&common::assets().join(env)).unwrap();
+        let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+        let bake = baker.bake_all(None, &|_| {});
+        let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
+        for (label, max_edge_px) in [("vertices", 0.0), ("1-px triangles", 1.0)] {
+            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, ..PrtSettings::default() });
+            for (w, h) in [(160, 120), (640, 480)] {
+                let mut camera = scene.cameras[0].clone();
+                camera.aspect = w as f32 / h as f32;
+                let sm = prt.shading_mesh(&camera, w, h);
+                let reps = if sm.points.len() > 100_000 { 1 } else { 3 };
+                let secs = time(reps, || prt.render(&light, &camera, w, h, &shading));
+                println!("| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |", scene.mesh.positions.len(), sm.subdivision, sm.points.len(), 1.0 / secs);
+            }
+        }
+    }
+}
