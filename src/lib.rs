@@ -13,6 +13,7 @@ pub mod brdf;
 pub mod env;
 pub mod export;
 pub mod fit;
+pub mod gpu;
 pub mod inspect;
 pub mod light;
 pub mod math;

@@ -1,0 +1,160 @@
+//! The wgpu preview against the CPU PRT renderer (issue #5), and every shader through naga.
+//!
+//! The GPU tests need an adapter: in CI that is Mesa's lavapipe (`mesa-vulkan-drivers`, installed by
+//! `.ci/test`). Without one they fail under `CI=true` and are skipped with a message elsewhere.
+
+mod common;
+
+use glint::bake::{BakeSettings, Baker};
+use glint::fit::run::{FitSettings, fit};
+use glint::gpu::{GpuContext, GpuPreview};
+use glint::light::LightSums;
+use glint::render::prt::{Prt, PrtSettings, Shading, ShadingPoint, Specular};
+use glint::render::table::{PhTable, default_resolution};
+use wgpu::naga;
+
+#[test]
+fn every_shader_validates_with_naga() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let mut checked = Vec::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("wgsl") {
+            continue;
+        }
+        let source = std::fs::read_to_string(&path).unwrap();
+        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
+        // Every shader states the BRDF convention.
+        assert!(source.contains("WITHOUT the cosine") || source.contains("without the cosine"), "{}: no BRDF convention", path.display());
+        checked.push(path.file_name().unwrap().to_string_lossy().into_owned());
+    }
+    checked.sort();
+    assert_eq!(checked, ["prt_raster.wgsl", "prt_shade.wgsl"], "every shader is validated");
+}
+
+fn context() -> Option<GpuContext> {
+    match GpuContext::headless() {
+        Ok(ctx) => {
+            println!("GPU adapter: {}", ctx.describe());
+            Some(ctx)
+        }
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI needs a GPU adapter (lavapipe): {e}"),
+        Err(e) => {
+            eprintln!("skipped: {e}");
+            None
+        }
+    }
+}
+
+const STROKES: &str = include_str!("../samples/strokes/bunny-highlight.json");
+
+/// Bakes `mesh` under studio, fits the sample strokes, and compares the GPU with the CPU per vertex
+/// and per pixel, at two rotations.
+fn compare(ctx: &GpuContext, mesh: &str) {
+    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+    let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let bake = baker.bake_all(None, &|_| {});
+    let tangents = baker.tangents.clone();
+    let views = glint::fit::strokes::parse(STROKES).unwrap();
+    let m = fit(&scene, &env, &bake.cuts, bake.decisions.resolution, tangents.as_deref(), bake.decisions.anisotropic, &views, &FitSettings::default()).unwrap().material;
+    let lobes = m.lobes().unwrap();
+    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    // Vertex shading on both sides: the GPU preview shades the mesh's vertices.
+    let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+    let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings);
+    let mut gpu = GpuPreview::new(ctx, &scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings).unwrap();
+    gpu.set_material(m.rho_d, m.f0, Some(&table)).unwrap();
+    let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
+    let camera = &scene.cameras[0];
+    let (w, h) = (320, 240);
+    for rotation in [0.0, 1.3] {
+        let light = LightSums::new(&env, &baker.set, &baker.tree, rotation);
+        gpu.set_light(&light, &baker.tree).unwrap();
+        // Per vertex: the same sum in f32 against f64.
+        let eye = camera.eye();
+        let points: Vec<ShadingPoint> = (0..scene.mesh.positions.len() as u32).map(|v| ShadingPoint { corners: [v; 3], bary: [1.0, 0.0, 0.0] }).collect();
+        let cpu_v = prt.shade_points(&points, &light, eye.as_dvec3(), &shading);
+        let gpu_v = gpu.vertex_radiance(eye).unwrap();
+        let scale = cpu_v.iter().flatten().fold(0.0f64, |a, &b| a.max(b));
+        let (mut num, mut den, mut worst) = (0.0f64, 0.0f64, 0.0f64);
+        for (c, g) in cpu_v.iter().zip(&gpu_v) {
+            for k in 0..3 {
+                let d = g[k] as f64 - c[k];
+                num += d * d;
+                den += c[k] * c[k];
+                worst = worst.max(d.abs() / scale);
+            }
+        }
+        let vertex_rmse = (num / den).sqrt();
+        // Per pixel, over the pixels both cover; and how many pixels only one covers.
+        let t0 = std::time::Instant::now();
+        let gpu_image = gpu.render(camera, w, h).unwrap();
+        let gpu_secs = t0.elapsed().as_secs_f64();
+        let cpu_image = prt.render(&light, camera, w, h, &shading);
+        let image_rmse = gpu_image.relative_rmse(&cpu_image).unwrap();
+        let only_one = gpu_image.covered.iter().zip(&cpu_image.covered).filter(|(a, b)| a != b).count();
+        let covered = cpu_image.covered_count();
+        println!(
+            "{mesh} rotation {rotation}: {} vertices; per-vertex relative RMSE {vertex_rmse:.2e}, worst {worst:.2e} of the peak; {w}x{h} frame relative RMSE {image_rmse:.2e} over shared pixels, {only_one} of {covered} pixels covered by one renderer only; GPU frame {gpu_secs:.3} s",
+            gpu_v.len()
+        );
+        assert!(vertex_rmse < 1e-4, "{mesh}: per-vertex GPU vs CPU {vertex_rmse}");
+        assert!(worst < 1e-2, "{mesh}: worst vertex {worst} of the peak");
+        // The issue asks for 1 %; lavapipe measures ~1e-5 (f32 against f64), so a bound of 0.1 % catches
+        // a broken term long before it reaches the goal.
+        assert!(image_rmse <= 1e-3, "{mesh}: GPU vs CPU frame {image_rmse} > 0.1 %");
+        assert!((only_one as f64) < 0.01 * covered as f64, "{mesh}: {only_one} of {covered} pixels differ in coverage");
+    }
+    // Diffuse only: the table is not read.
+    gpu.set_material(m.rho_d, m.f0, None).unwrap();
+    let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
+    gpu.set_light(&light, &baker.tree).unwrap();
+    let diffuse = gpu.render(camera, w, h).unwrap();
+    let cpu = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::None });
+    let e = diffuse.relative_rmse(&cpu).unwrap();
+    assert!(e <= 0.01, "{mesh}: diffuse-only GPU vs CPU {e}");
+}
+
+#[test]
+fn gpu_preview_matches_the_cpu_frame_on_the_bunny() {
+    if let Some(ctx) = context() {
+        compare(&ctx, "bunny");
+    }
+}
+
+#[test]
+fn gpu_preview_matches_the_cpu_frame_on_the_teapot() {
+    if let Some(ctx) = context() {
+        compare(&ctx, "teapot");
+    }
+}
+
+/// A white furnace on the GPU: ρd = 1 under a uniform environment of radiance 1 with no occluder
+/// renders 1 everywhere (closed form), and a frame before `set_light` is an error, not a panic.
+#[test]
+fn white_furnace_and_not_ready() {
+    let Some(ctx) = context() else { return };
+    let scene = common::scene_from_mesh(common::uv_sphere(1.0, 32, 16, false));
+    let env = glint::env::EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let bake = baker.bake_all(None, &|_| {});
+    let mut gpu = GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings::default()).unwrap();
+    let camera = &scene.cameras[0];
+    let err = gpu.render(camera, 16, 16).unwrap_err();
+    assert!(err.to_string().contains("set_light"), "{err}");
+    gpu.set_light(&LightSums::new(&env, &baker.set, &baker.tree, 0.0), &baker.tree).unwrap();
+    gpu.set_material([1.0; 3], 0.04, None).unwrap();
+    let radiance = gpu.vertex_radiance(camera.eye()).unwrap();
+    let worst = radiance.iter().flatten().fold(0.0f32, |a, &b| a.max((b - 1.0).abs()));
+    assert!(worst < 1e-3, "furnace: worst vertex off by {worst}");
+    let image = gpu.render(camera, 64, 64).unwrap();
+    assert!(image.covered_count() > 500);
+    let worst = image.pixels.iter().zip(&image.covered).filter(|(_, c)| **c).flat_map(|(p, _)| p.iter()).fold(0.0f32, |a, &b| a.max((b - 1.0).abs()));
+    assert!(worst < 1e-3, "furnace: worst pixel off by {worst}");
+    assert!(gpu.render(camera, 0, 16).is_err(), "an empty frame is refused");
+}
