@@ -4,7 +4,10 @@
 //! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k, baked
 //! with the default settings; an isotropic material with three ring lobes (J = 24, σ = π/40); the
 //! scene's default camera at 160×120 and 640×480; the default shading density (1-pixel shading
-//! triangles) and vertex shading only.
+//! triangles) and vertex shading only. Then the wgpu preview (vertex shading) on the first adapter:
+//! on a machine without a GPU that is Mesa's lavapipe, which says nothing of a GPU's speed; the table
+//! says which adapter ran. Frame = shade + raster + readback of the image (the app skips the readback);
+//! light = the per-rotation upload.
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -34,6 +37,7 @@ fn main() {
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     println!("p(h) table {}² with {} filtered levels ({:.1} MB): build {:.1} ms", table.resolution(), table.level_count(), table.bytes() as f64 / 1e6, t_table * 1e3);
     let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
+    let mut gpu_rows = Vec::new();
     println!("| scene | vertices | size | shading | subdivision | points | frame (s) | fps |");
     println!("|---|---|---|---|---|---|---|---|");
     for (mesh, env) in [("bunny", "hdr/small/studio_512.exr"), ("dragon_100k", "hdr/courtyard_1k.exr")] {
@@ -53,5 +57,27 @@ fn main() {
                 println!("| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |", scene.mesh.positions.len(), sm.subdivision, sm.points.len(), 1.0 / secs);
             }
         }
+        match glint::gpu::GpuContext::headless() {
+            Ok(ctx) => {
+                let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+                let mut preview = glint::gpu::GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, settings).unwrap();
+                preview.set_material([0.5; 3], 0.04, Some(&table)).unwrap();
+                let t_light = time(3, || preview.set_light(&light, &baker.tree).unwrap());
+                for (w, h) in [(160, 120), (640, 480)] {
+                    let mut camera = scene.cameras[0].clone();
+                    camera.aspect = w as f32 / h as f32;
+                    preview.render(&camera, w, h).unwrap();
+                    let secs = time(5, || preview.render(&camera, w, h).unwrap());
+                    gpu_rows.push(format!("| {mesh} | {} | {w}×{h} | {} | {secs:.3} | {:.1} | {:.1} |", scene.mesh.positions.len(), ctx.describe(), 1.0 / secs, t_light * 1e3));
+                }
+            }
+            Err(e) => gpu_rows.push(format!("| {mesh} | no adapter: {e} | | | | |")),
+        }
+    }
+    println!();
+    println!("| scene | vertices | size | wgpu adapter | frame (s) | fps | light upload (ms) |");
+    println!("|---|---|---|---|---|---|---|");
+    for row in gpu_rows {
+        println!("{row}");
     }
 }

@@ -62,8 +62,12 @@ struct RenderArgs {
     #[arg(long)]
     size: Option<String>,
     /// Render the Monte Carlo reference with this many samples per pixel instead of the PRT frame.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "gpu")]
     reference: Option<u32>,
+    /// Render the PRT frame with the wgpu preview (vertex shading, on the first GPU adapter; Mesa's
+    /// lavapipe where there is no GPU) instead of the CPU.
+    #[arg(long)]
+    gpu: bool,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]
     exposure: f32,
@@ -523,6 +527,16 @@ fn render(args: &RenderArgs) -> Result<()> {
             let m = glint::render::ExactMaterial { lobes: &lobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
             let img = glint::render::render_reference(&loaded.scene.mesh, loaded.tangents.as_deref(), &tracer, offset, &loaded.env, rotation, m, &camera, w, h, spp, 1);
             (img, format!("Monte Carlo reference, {spp} spp"))
+        }
+        None if args.gpu => {
+            let ctx = glint::gpu::GpuContext::headless()?;
+            let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+            let mut preview = glint::gpu::GpuPreview::new(&ctx, &loaded.scene.mesh, &loaded.cuts, &tree, loaded.tangents.as_deref(), settings)?;
+            let t = table::PhTable::build(&lobes, coefficients, table::default_resolution(lobes.lambda()));
+            preview.set_light(&glint::light::LightSums::new(&loaded.env, &set, &tree, rotation), &tree)?;
+            preview.set_material(material.rho_d, material.f0, Some(&t))?;
+            let img = preview.render(&camera, w, h)?;
+            (img, format!("wgpu PRT preview on {}, p(h) table {}²", ctx.describe(), t.resolution()))
         }
         None => {
             let light = glint::light::LightSums::new(&loaded.env, &set, &tree, rotation);

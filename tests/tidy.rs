@@ -55,3 +55,19 @@ fn exporters_know_nothing_of_the_pipeline() {
         assert!(!text.contains("glint::"), "{f:?} names the pipeline crate");
     }
 }
+
+#[test]
+fn only_the_gpu_and_app_modules_know_wgpu() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    rust_files(&root.join("src"), &mut files);
+    let offenders: Vec<_> = files
+        .iter()
+        .filter(|f| {
+            let rel = f.strip_prefix(root.join("src")).unwrap();
+            let allowed = rel.starts_with("gpu") || rel.starts_with("app") || rel == Path::new("main.rs");
+            !allowed && std::fs::read_to_string(f).unwrap().contains("wgpu::")
+        })
+        .collect();
+    assert!(offenders.is_empty(), "wgpu outside src/gpu and src/app: {offenders:?}");
+}
