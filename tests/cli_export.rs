@@ -2,7 +2,8 @@
 //! byte-identical on a second export, the USD checked by usd-core against the material JSON, the GLB
 //! by Khronos' gltf-validator (0 errors, 0 warnings), the MERL file read back at cell centres against
 //! glint's exact lobe sum (independent of the table the file was made from), and `glint render`
-//! writing both image formats.
+//! writing both image formats. An anisotropic material's export carries KHR_materials_anisotropy
+//! (gltf-validator: 0 errors, 0 warnings) and its USD keeps the same anisotropy (usd-core).
 //!
 //! The Python (usd-core) and node (gltf-validator) tools come from `.ci/test`; under CI=true a missing
 //! tool fails the test, elsewhere the check is skipped with a note.
@@ -27,6 +28,19 @@ fn tool(path: PathBuf, what: &str) -> Option<PathBuf> {
 
 fn repo() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Khronos gltf-validator on a GLB: asserts 0 errors and 0 warnings, returns the report (None when
+/// the validator is not installed outside CI).
+fn validate_glb(glb: &Path) -> Option<serde_json::Value> {
+    tool(repo().join("exporters/js/node_modules/gltf-validator/package.json"), "npm gltf-validator")?;
+    let o = Command::new("node").arg(repo().join("exporters/js/validate_gltf.mjs")).arg(glb).output().unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("validator report");
+    let issues = &report["issues"];
+    println!("gltf-validator: {} errors, {} warnings, {} infos, {} hints", issues["numErrors"], issues["numWarnings"], issues["numInfos"], issues["numHints"]);
+    assert_eq!(issues["numErrors"], 0, "{}", issues["messages"]);
+    assert_eq!(issues["numWarnings"], 0, "{}", issues["messages"]);
+    Some(report)
 }
 
 /// Bakes the bundled bunny under the small studio map and fits the sample strokes; returns
@@ -94,14 +108,7 @@ fn export_writes_every_format_and_independent_readers_agree() {
         println!("{}", text.trim());
     }
     // gltf-validator: 0 errors and 0 warnings.
-    if tool(repo().join("exporters/js/node_modules/gltf-validator/package.json"), "npm gltf-validator").is_some() {
-        let o = Command::new("node").arg(repo().join("exporters/js/validate_gltf.mjs")).arg(to.join("shiny.glb")).output().unwrap();
-        let report: serde_json::Value = serde_json::from_slice(&o.stdout).expect("validator report");
-        let issues = &report["issues"];
-        println!("gltf-validator: {} errors, {} warnings, {} infos, {} hints", issues["numErrors"], issues["numWarnings"], issues["numInfos"], issues["numHints"]);
-        assert_eq!(issues["numErrors"], 0, "{}", issues["messages"]);
-        assert_eq!(issues["numWarnings"], 0, "{}", issues["messages"]);
-    }
+    validate_glb(&to.join("shiny.glb"));
 
     // MERL read back at cell centres against glint's exact BRDF (the ring lobes in closed form).
     let m = glint::fit::material::Material::parse(&std::fs::read_to_string(&material).unwrap()).unwrap();
@@ -131,6 +138,83 @@ fn export_writes_every_format_and_independent_readers_agree() {
     }
     println!("MERL at {checked} cell centres (θi, θo < 84°): worst relative error {worst:.2e}");
     assert!(worst < 0.01, "MERL vs exact BRDF: {worst}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// The JSON chunk of a GLB.
+fn glb_json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[16..20], b"JSON");
+    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+}
+
+/// An anisotropic material (hemicube 7×7 at λ = 30, coefficients an elongated Gaussian of the centre's
+/// tangent-plane position with its long axis at 0.7 rad) through `glint export` (preview sphere, every
+/// format): the GLB carries KHR_materials_anisotropy along that axis and passes gltf-validator with 0
+/// errors and 0 warnings; the USD records the same anisotropy (customData) and passes usd-core, its
+/// fallback compared with the GLB's.
+#[test]
+fn export_of_an_anisotropic_material_carries_khr_materials_anisotropy() {
+    use glint::sphere::{LobeLayout, LobeSet};
+    let dir = common::temp_dir("export-aniso");
+    let axis: f64 = 0.7;
+    let lobes = LobeSet::new(LobeLayout::Hemicube { n: 7 }, 30.0).unwrap();
+    let weight = |x: &glam::DVec3| {
+        let (s, c) = (-axis).sin_cos();
+        let (u, v) = (c * x.x - s * x.y, s * x.x + c * x.y);
+        (-(u / 0.5).powi(2) - (v / 0.15).powi(2)).exp()
+    };
+    let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [2.0, 1.6, 1.2][ch] * weight(x)).collect());
+    let sigma = glint::sphere::srbf::sigma_from_lambda(lobes.lambda()).unwrap();
+    let m = glint::fit::material::Material::new(&lobes, sigma, coefficients, [0.02, 0.02, 0.02], 0.6, Default::default());
+    let material = dir.join("brushed.json");
+    std::fs::write(&material, m.to_json()).unwrap();
+    let to = dir.join("out");
+    let out = run_glint!(["export".as_ref(), material.as_os_str(), "--to".as_ref(), to.as_os_str()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "export: {}", String::from_utf8_lossy(&out.stderr));
+    println!("{stdout}");
+
+    let json = glb_json(&to.join("brushed.glb"));
+    let mat = &json["materials"][0];
+    let ext = &mat["extensions"]["KHR_materials_anisotropy"];
+    let (strength, rotation) = (ext["anisotropyStrength"].as_f64().expect("anisotropyStrength"), ext["anisotropyRotation"].as_f64().expect("anisotropyRotation"));
+    let off = (rotation - axis).rem_euclid(std::f64::consts::PI);
+    let off = off.min(std::f64::consts::PI - off);
+    println!("KHR_materials_anisotropy: strength {strength}, rotation {rotation} (coefficients' axis {axis}, {:.2}° off)", off.to_degrees());
+    assert!(strength > 0.0 && strength <= 1.0, "{ext}");
+    // The hemicube's centres are ~15° apart: p's long axis follows the coefficients' within a few degrees.
+    assert!(off < 5f64.to_radians(), "rotation {rotation} vs the coefficients' axis {axis}");
+    assert_eq!(json["extensionsUsed"], serde_json::json!(["KHR_materials_anisotropy"]));
+    assert!(json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"].is_u64(), "the preview sphere needs tangents");
+    let glint = &mat["extras"]["glint"];
+    let iso: f64 = glint["provenance"]["fallback_isotropic_relative_error"].as_str().expect("the isotropic fit's error in the provenance").parse().unwrap();
+    let aniso = glint["fallback_relative_error"].as_f64().unwrap();
+    assert!(aniso < iso, "anisotropic fit {aniso} vs isotropic {iso}");
+
+    if let Some(report) = validate_glb(&to.join("brushed.glb")) {
+        assert!(report["info"]["extensionsUsed"].as_array().is_some_and(|e| e.iter().any(|e| e == "KHR_materials_anisotropy")), "{report}");
+    }
+    // usd-core: the stage against the material JSON, its fallback (anisotropy included) against the GLB's.
+    if let Some(py) = tool(repo().join(".venv/bin/python"), "python venv with usd-core") {
+        let mut expected: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
+        let pbr = &mat["pbrMetallicRoughness"];
+        expected["fallback"] = serde_json::json!({
+            "base_color": pbr["baseColorFactor"].as_array().unwrap()[..3],
+            "metallic": pbr["metallicFactor"],
+            "roughness": pbr["roughnessFactor"],
+            "anisotropy": [strength, rotation],
+        });
+        let expected_path = dir.join("expected.json");
+        std::fs::write(&expected_path, expected.to_string()).unwrap();
+        let o = Command::new(py).arg(repo().join("exporters/python/check_usd.py")).arg(to.join("brushed.usda")).arg(&expected_path).output().unwrap();
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "check_usd: {text}{}", String::from_utf8_lossy(&o.stderr));
+        assert!(text.contains("with its anisotropy"), "{text}");
+        println!("{}", text.trim());
+    }
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -9,7 +9,9 @@ render-context output resolving to the glint_dbrdf_srbf shader), MaterialBinding
 the table asset resolving beside the stage, UsdUtils.ComplianceChecker (when this usd-core has it) and
 the UsdValidation validators (when it has them) without errors — and compares every number of the lobe
 table (lambda, sigma, f0, rho_d, centres, coefficients; plus the fallback when the JSON has one) with
-glint's material JSON within float precision (relative 1e-6).
+glint's material JSON within float precision (relative 1e-6). The fallback's anisotropy, when the
+JSON's "fallback" has an "anisotropy" key ([strength, rotation] or null), is compared with the
+Material's customData glint.fallback_anisotropy (or its absence).
 
 Prints "check_usd: OK ..." and exits 0, or prints one line "check_usd: FAIL: <reason>" and exits 1.
 """
@@ -175,14 +177,26 @@ def main():
         fail("the material JSON's coefficients are not 3 x J")
     for k, ch in enumerate("rgb"):
         compare(f"coefficients[{k}]", list(value(f"coefficients_{ch}")), coefficients[k])
+    compared = "lobe table"
     if "fallback" in mat_json:
         fb = mat_json["fallback"]
+        compared = "lobe table and fallback" + (" (with its anisotropy)" if fb.get("anisotropy") is not None else "")
         compare("fallback.base_color", list(preview.GetInput("diffuseColor").Get()), fb["base_color"])
         compare("fallback.metallic", [preview.GetInput("metallic").Get()], [fb["metallic"]])
         compare("fallback.roughness", [preview.GetInput("roughness").Get()], [fb["roughness"]])
+        if "anisotropy" in fb:
+            # UsdPreviewSurface has no anisotropy: the exporter keeps it in the Material's customData.
+            recorded = (material.GetPrim().GetCustomDataByKey("glint") or {}).get("fallback_anisotropy")
+            if fb["anisotropy"] is None:
+                if recorded is not None:
+                    fail("customData glint.fallback_anisotropy is present but the fallback is isotropic")
+            elif recorded is None:
+                fail("the fallback is anisotropic but customData glint.fallback_anisotropy is missing")
+            else:
+                compare("fallback.anisotropy", [recorded.get("strength"), recorded.get("rotation")], fb["anisotropy"])
 
     j = len(mat_json["centres"])
-    print(f"check_usd: OK {stage_path}: {len(bound)} bound gprim(s), J = {j}, {' + '.join(checked)} clean, lobe table matches within {REL}")
+    print(f"check_usd: OK {stage_path}: {len(bound)} bound gprim(s), J = {j}, {' + '.join(checked)} clean, {compared} match within {REL}")
 
 
 if __name__ == "__main__":

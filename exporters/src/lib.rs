@@ -8,7 +8,8 @@
 //! - `gltf` — `<name>.glb`: the mesh (or a preview sphere) with a metallic–roughness fallback material
 //!   (plus `KHR_materials_anisotropy` when anisotropic) and the lobe table in `extras.glint` ([`gltf`]);
 //! - `usd` — `<name>.usda`: a UsdShade Material with a UsdPreviewSurface and a `glint_dbrdf_srbf`
-//!   shader carrying the lobe table, bound to the mesh or a preview sphere ([`usd`]);
+//!   shader carrying the lobe table, bound to the mesh or a preview sphere; the fallback's anisotropy,
+//!   which UsdPreviewSurface cannot express, in the Material's `customData.glint` ([`usd`]);
 //! - `merl` — `<name>.binary`: a MERL isotropic table sampled by the caller ([`merl`]).
 //!
 //! glTF and USD reference the table as `./<name>_ph.exr` and write it beside themselves.

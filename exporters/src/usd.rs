@@ -7,7 +7,10 @@
 //!
 //! ```text
 //! /Root (Xform, defaultPrim, kind = component; stage: upAxis Y, metersPerUnit 1)
-//!   /Root/Looks/<Mat> (Material; customData.glint: provenance, fallback_relative_error)
+//!   /Root/Looks/<Mat> (Material; customData.glint: provenance, fallback_relative_error, and when the
+//!                      fallback is anisotropic fallback_anisotropy = {strength, rotation, convention}:
+//!                      UsdPreviewSurface has no anisotropy input, so the KHR_materials_anisotropy
+//!                      values the glTF carries are kept here rather than lost)
 //!     outputs:surface       -> PreviewSurface.outputs:surface
 //!     outputs:glint:surface -> GlintDbrdf.outputs:surface   (render context "glint")
 //!     PreviewSurface (Shader, UsdPreviewSurface: diffuseColor, metallic, roughness, useSpecularWorkflow 0)
@@ -45,6 +48,9 @@ pub const GLINT_SHADER_ID: &str = "glint_dbrdf_srbf";
 pub const SOURCE_TYPE: &str = "glint";
 /// The root `class Shader` prim that defines the glint shader's inputs for Sdr.
 pub const DEFINITION_PRIM: &str = "GlintDbrdfSrbfDefinition";
+
+/// What `customData.glint.fallback_anisotropy` means (written beside the numbers).
+pub const ANISOTROPY_CONVENTION: &str = "KHR_materials_anisotropy of the fallback: strength in [0, 1]; rotation in radians, counter-clockwise from the tangent (local x) towards the bitangent; alpha_t = mix(roughness^2, 1, strength^2), alpha_b = roughness^2";
 
 /// f32 shortest round-trip text (`1.0`, `0.1`, `1e-7`).
 fn num(x: f64) -> String {
@@ -143,6 +149,13 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(o, "        def Material \"{mat}\" (");
     let _ = writeln!(o, "            customData = {{");
     let _ = writeln!(o, "                dictionary glint = {{");
+    if let Some((strength, rotation)) = fb.anisotropy {
+        let _ = writeln!(o, "                    dictionary fallback_anisotropy = {{");
+        let _ = writeln!(o, "                        string convention = {}", quote(ANISOTROPY_CONVENTION));
+        let _ = writeln!(o, "                        double rotation = {rotation:?}");
+        let _ = writeln!(o, "                        double strength = {strength:?}");
+        let _ = writeln!(o, "                    }}");
+    }
     let _ = writeln!(o, "                    double fallback_relative_error = {:?}", fb.relative_error);
     let _ = writeln!(o, "                    dictionary provenance = {{");
     for (k, v) in &desc.provenance {

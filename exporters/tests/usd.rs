@@ -22,7 +22,7 @@ fn check(scene: bool, isotropic_fallback: bool) {
     let files = UsdExporter.export(&desc, scene.then_some(&mesh), &dir).unwrap();
     assert_eq!(files.len(), 2, "{files:?}");
     let mut json = desc.lobe_table_json();
-    json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness });
+    json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": desc.fallback.anisotropy });
     let json_path = dir.join("material.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
     let script = workspace().join("exporters/python/check_usd.py");
@@ -59,4 +59,33 @@ fn check_usd_catches_a_mismatch() {
     assert!(!ok, "a mismatch passed:\n{out}\n{err}");
     assert!(out.contains("coefficients[1][5]") && out.trim().lines().count() == 1, "{out}{err}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The anisotropy comparison must be able to fail too: a wrong rotation, an anisotropy the stage
+/// lost, and one the stage has but the fallback does not.
+#[test]
+fn check_usd_catches_a_lost_or_wrong_anisotropy() {
+    let Some(py) = python("pxr, numpy") else { return };
+    let script = workspace().join("exporters/python/check_usd.py");
+    let aniso = material("m", 16);
+    let mut iso = aniso.clone();
+    iso.fallback.anisotropy = None;
+    let (s, r) = aniso.fallback.anisotropy.expect("the fixture is anisotropic");
+    let cases = [
+        ("wrong", &aniso, serde_json::json!([s, r * (1.0 + 1e-4)]), "fallback.anisotropy[1]"),
+        ("lost", &iso, serde_json::json!([s, r]), "missing"),
+        ("extra", &aniso, serde_json::Value::Null, "present"),
+    ];
+    for (tag, desc, anisotropy, needle) in cases {
+        let dir = temp_dir(&format!("usd-aniso-{tag}"));
+        UsdExporter.export(desc, None, &dir).unwrap();
+        let mut json = desc.lobe_table_json();
+        json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": anisotropy });
+        let json_path = dir.join("material.json");
+        std::fs::write(&json_path, json.to_string()).unwrap();
+        let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("m.usda")).arg(&json_path));
+        assert!(!ok, "{tag}: a mismatch passed:\n{out}\n{err}");
+        assert!(out.contains(needle) && out.trim().lines().count() == 1, "{tag}: {out}{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
