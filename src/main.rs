@@ -209,10 +209,28 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("glint: error: {e:#}");
+            eprintln!("glint: error: {}", error_line(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error and its causes on one line, each cause once: library errors already put their source's
+/// message into their own (`"{path}: {source}"`), so a cause whose text the line already holds is not
+/// repeated; line breaks inside a message (a decoder's, say) become spaces.
+fn error_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ")
 }
 
 fn inspect(scene_path: &Path, env_path: Option<&Path>, json: bool) -> Result<()> {
@@ -239,10 +257,18 @@ fn bake(args: &BakeArgs) -> Result<()> {
         cell_deg: (args.cell_deg > 0.0).then_some(args.cell_deg),
         ..BakeSettings::default()
     };
-    let scene_hash = file::hash_file(&args.scene)?;
-    let env_hash = file::hash_file(&args.env)?;
+    // Every input and argument is checked before anything is baked or written: the loaders refuse
+    // bad files (and oversized ones) before the whole file is read for its hash, and a bad view or
+    // fit size is reported before minutes of baking, not after the bake was written.
     let scene = glint::scene::import(&args.scene)?;
     let env = glint::env::load(&args.env)?;
+    let camera = pick_view(&scene, args.camera.as_deref(), args.orbit.as_deref())?;
+    let (fit_w, fit_h) = match &args.fit_size {
+        Some(s) => parse_size(s)?,
+        None => ((camera.width / 4).max(1), (camera.height / 4).max(1)),
+    };
+    let scene_hash = file::hash_file(&args.scene)?;
+    let env_hash = file::hash_file(&args.env)?;
     let existing = out.join("bake.glint");
     let mut reused = None;
     if existing.exists() && !args.force {
@@ -282,11 +308,6 @@ fn bake(args: &BakeArgs) -> Result<()> {
         }
     };
     // The view: transfer for it and for a rotated environment (no ray tracing: only new sums).
-    let camera = pick_view(&scene, args.camera.as_deref(), args.orbit.as_deref())?;
-    let (fit_w, fit_h) = match &args.fit_size {
-        Some(s) => parse_size(s)?,
-        None => ((camera.width / 4).max(1), (camera.height / 4).max(1)),
-    };
     let (_, cuts) = file::read(&out.join("bake.glint"))?;
     let set = glint::sphere::DirectionSet::cube(header.decisions.resolution)?;
     let tree = glint::sphere::LightTree::build(&set);

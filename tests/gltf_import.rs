@@ -7,11 +7,14 @@
 //! No bad input may panic the library: each bad case asserts the error variant, and a mutation
 //! sweep imports hundreds of corrupted files.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
 use glam::{Vec3, Vec4};
 use glint::scene::{self, AttributeSource, ImportError, Scene};
+use common::pack_glb;
 use serde_json::{Value, json};
 
 const ASSETS: &str = "/work/shared/assets/glb";
@@ -25,33 +28,6 @@ fn scratch(test: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-/// Packs a GLB 2 container: JSON chunk (space padded) and, if non-empty, a BIN chunk (zero padded).
-fn pack_glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut json = serde_json::to_vec(doc).unwrap();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes()); // patched below
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    if !bin.is_empty() {
-        let mut b = bin.to_vec();
-        while !b.len().is_multiple_of(4) {
-            b.push(0);
-        }
-        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&b);
-    }
-    let total = out.len() as u32;
-    out[8..12].copy_from_slice(&total.to_le_bytes());
-    out
 }
 
 /// Buffer bytes plus the bufferViews and accessors describing them.

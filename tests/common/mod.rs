@@ -9,6 +9,33 @@ pub fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets")
 }
 
+/// Packs a GLB 2 container: JSON chunk (space padded) and, if non-empty, a BIN chunk (zero padded).
+pub fn pack_glb(doc: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(doc).unwrap();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes()); // patched below
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    if !bin.is_empty() {
+        let mut b = bin.to_vec();
+        while !b.len().is_multiple_of(4) {
+            b.push(0);
+        }
+        out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&b);
+    }
+    let total = out.len() as u32;
+    out[8..12].copy_from_slice(&total.to_le_bytes());
+    out
+}
+
 /// A scene around a mesh (normals given), with the default camera.
 pub fn scene_from_mesh(mesh: Mesh) -> Scene {
     let bounds = Bounds::from_points(&mesh.positions).expect("non-empty mesh");
