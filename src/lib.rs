@@ -21,4 +21,5 @@ pub mod raster;
 pub mod render;
 pub mod scene;
 pub mod sphere;
+pub mod study;
 pub mod transfer;

@@ -36,8 +36,9 @@ enum Command {
     Export(ExportArgs),
     /// The interactive painting app (issue #7).
     App(Pending),
-    /// Accuracy-against-time study (issue #8).
-    Study(Pending),
+    /// Accuracy against time: sweep each accuracy knob from the defaults; write study.csv, study.svg
+    /// (error against time, Pareto front) and study.md.
+    Study(StudyArgs),
     /// The headless main job on the bundled sample: bake, fit the sample strokes, render, export.
     Demo(DemoArgs),
 }
@@ -185,6 +186,25 @@ struct FitArgs {
 
 /// Arguments of a subcommand that this build does not have yet: accepted, then refused clearly.
 #[derive(clap::Args)]
+struct StudyArgs {
+    /// The scene (default: the bundled bunny).
+    #[arg(long, default_value = "samples/bunny.glb")]
+    scene: PathBuf,
+    /// The environment (default: the bundled studio).
+    #[arg(long, default_value = "samples/studio_1k.exr")]
+    env: PathBuf,
+    /// The fixed stroke set every setting is fitted to.
+    #[arg(long, default_value = "samples/strokes/bunny-highlight.json")]
+    strokes: PathBuf,
+    /// Fewer settings, an 80×60 frame and a 256-spp truth: minutes → well under 2 minutes (for CI).
+    #[arg(long)]
+    quick: bool,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
 struct Pending {
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
     args: Vec<String>,
@@ -203,7 +223,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => render(&args),
         Some(Command::Export(args)) => export(&args),
         Some(Command::App(_)) => return not_available("app", 7),
-        Some(Command::Study(_)) => return not_available("study", 8),
+        Some(Command::Study(args)) => study(&args),
         Some(Command::Demo(args)) => demo(&args),
     };
     match result {
@@ -619,12 +639,50 @@ fn export(args: &ExportArgs) -> Result<()> {
     println!(
         "glTF/USD fallback (pbrMetallicRoughness): base colour [{:.3}, {:.3}, {:.3}], metallic {:.2}, roughness {:.3}; relative RMS error against the fitted BRDF {:.1} %{}",
         f.base_color[0], f.base_color[1], f.base_color[2], f.metallic, f.roughness, f.relative_error * 100.0,
-        if desc.isotropic { "" } else { " (isotropic fallback for an anisotropic material)" }
+        match f.anisotropy {
+            Some((strength, rotation)) => format!("; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"),
+            None if desc.isotropic => String::new(),
+            None => " (isotropic fallback: an anisotropic one fitted no better)".to_string(),
+        }
     );
     Ok(())
 }
 
 /// `glint demo`: the headless main job on the bundled sample.
+fn study(args: &StudyArgs) -> Result<()> {
+    let scene = glint::scene::import(&args.scene)?;
+    let env = glint::env::load(&args.env)?;
+    let text = std::fs::read_to_string(&args.strokes).with_context(|| format!("reading {}", args.strokes.display()))?;
+    let strokes = glint::fit::strokes::parse(&text)?;
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(indicatif::ProgressStyle::with_template("study {bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    let start = std::time::Instant::now();
+    let rows = glint::study::run(&scene, &env, &strokes, &glint::study::StudyOptions { quick: args.quick }, &|done, total, what| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(what.to_string());
+    })?;
+    bar.finish_and_clear();
+    let name = |p: &std::path::Path| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let title = format!(
+        "glint study: {} under {}{} — {} settings, {:.0} s on {} threads",
+        name(&args.scene),
+        name(&args.env),
+        if args.quick { " (quick)" } else { "" },
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
+    );
+    for p in glint::study::write_report(&args.out, &rows, &title)? {
+        println!("wrote {}", p.display());
+    }
+    let front = glint::study::pareto_front(&rows);
+    if let Some((r, _)) = rows.iter().zip(&front).find(|(r, _)| r.is_default) {
+        println!("defaults: {:.2} s, {:.2} % against Monte Carlo; {} of {} settings on the Pareto front", r.total_secs(), 100.0 * r.rel_rmse, front.iter().filter(|p| **p).count(), rows.len());
+    }
+    Ok(())
+}
+
 fn demo(args: &DemoArgs) -> Result<()> {
     let samples = samples_dir();
     let out = &args.out;

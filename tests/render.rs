@@ -218,3 +218,58 @@ fn diffuse_prt_matches_the_closed_form_on_a_sphere() {
         }
     }
 }
+
+/// Dev study (ignored): transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
+/// mesh (`cargo test --test render subdivision_study -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn subdivision_study() {
+    let spec = std::env::var("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
+    for item in spec.split(',') {
+        let f: Vec<&str> = item.split(':').collect();
+        let (mesh, levels, cell_deg, epsilon): (&str, usize, f64, f64) = (f[0], f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
+        {
+            let mut scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+            for _ in 0..levels {
+                scene.mesh = glint::scene::subdivide_midpoint(&scene.mesh);
+            }
+            let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+            let t0 = std::time::Instant::now();
+            let mut settings = BakeSettings { cell_deg: Some(cell_deg), ..BakeSettings::default() };
+            settings.cut.epsilon = epsilon;
+            let baker = Baker::new(&scene, &env, settings).unwrap();
+            let bake = baker.bake_all(None, &|_| {});
+            let bake_secs = t0.elapsed().as_secs_f64();
+            let (baker_offset, tangents, set, tree) = (baker.ray_offset(), baker.tangents.clone(), baker.set.clone(), baker.tree.clone());
+            drop(baker);
+            let c = Case { scene, env, baker_offset, tangents, set, tree, bake };
+            let m = fitted(&c);
+            let lobes = m.lobes().unwrap();
+            let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+            let camera = &c.scene.cameras[0];
+            let (w, h) = (160, 120);
+            let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
+            let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+            let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
+            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default()).render(&light, camera, w, h, &shading);
+            let prt_v = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() }).render(&light, camera, w, h, &shading);
+            let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+            let t = ctx.compute(&light, camera, w, h, m.f0);
+            let mut transfer = glint::render::Image::new(w, h);
+            for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
+                transfer.set(p.x, p.y, v.map(|x| x as f32));
+            }
+            let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+            let tracer = glint::bake::Tracer::new(&c.scene.mesh);
+            let mc = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+            println!(
+                "{mesh} levels {levels} cell {cell_deg}° ε {epsilon}: {} vertices, mean cut {:.0}, bake {bake_secs:.2} s; vs MC: transfer {:.4}, PRT {:.4}, PRT vertex-only {:.4}",
+                c.scene.mesh.positions.len(),
+                c.bake.cuts.mean_cut_size(),
+                transfer.relative_rmse(&mc).unwrap(),
+                prt.relative_rmse(&mc).unwrap(),
+                prt_v.relative_rmse(&mc).unwrap()
+            );
+        }
+    }
+}

@@ -251,17 +251,8 @@ impl GpuPreview {
         }
         data.extend(light.leaf_radiance().iter().map(|r| [r[0] as f32, r[1] as f32, r[2] as f32, 0.0]));
         let bytes: &[u8] = bytemuck::cast_slice(&data);
-        match &self.light {
-            Some(buffer) if buffer.size() == bytes.len() as u64 => self.ctx.queue.write_buffer(buffer, 0, bytes),
-            _ => {
-                check_size(&self.ctx, bytes.len() as u64)?;
-                self.light = Some(self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("light"),
-                    contents: bytes,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                }));
-                self.shade_bind = None;
-            }
+        if upload(&self.ctx, &mut self.light, "light", bytes)? {
+            self.shade_bind = None;
         }
         Ok(())
     }
@@ -291,17 +282,8 @@ impl GpuPreview {
         }
         self.uniforms.table = [level_count, flags, lambda.to_bits(), 0];
         let bytes: &[u8] = bytemuck::cast_slice(&texels);
-        match &self.table {
-            Some(buffer) if buffer.size() == bytes.len() as u64 => self.ctx.queue.write_buffer(buffer, 0, bytes),
-            _ => {
-                check_size(&self.ctx, bytes.len() as u64)?;
-                self.table = Some(self.ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("p(h) table"),
-                    contents: bytes,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                }));
-                self.shade_bind = None;
-            }
+        if upload(&self.ctx, &mut self.table, "p(h) table", bytes)? {
+            self.shade_bind = None;
         }
         Ok(())
     }
@@ -458,6 +440,22 @@ impl GpuPreview {
         }
         Ok(image)
     }
+}
+
+/// Writes `bytes` into `slot`, reusing its buffer when the size matches; true when a new buffer was
+/// made (bind groups that hold the old one must be rebuilt).
+fn upload(ctx: &GpuContext, slot: &mut Option<wgpu::Buffer>, label: &str, bytes: &[u8]) -> Result<bool, GpuError> {
+    if let Some(buffer) = slot.as_ref().filter(|b| b.size() == bytes.len() as u64) {
+        ctx.queue.write_buffer(buffer, 0, bytes);
+        return Ok(false);
+    }
+    check_size(ctx, bytes.len() as u64)?;
+    *slot = Some(ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+    }));
+    Ok(true)
 }
 
 fn check_size(ctx: &GpuContext, bytes: u64) -> Result<(), GpuError> {

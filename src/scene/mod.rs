@@ -38,6 +38,7 @@ mod camera;
 mod container;
 mod error;
 mod geometry;
+mod subdivide;
 
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -53,6 +54,7 @@ pub use camera::{
 pub use container::{IGNORABLE_REQUIRED_EXTENSIONS, IGNORABLE_REQUIRED_PREFIXES, MAX_FILE_BYTES};
 pub use error::ImportError;
 pub use geometry::angle_weighted_normals;
+pub use subdivide::subdivide_midpoint;
 
 /// Largest number of vertices in a scene after instancing (64 Mi).
 pub const MAX_SCENE_VERTICES: usize = 64 * 1024 * 1024;

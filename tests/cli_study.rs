@@ -1,0 +1,68 @@
+//! `glint study --quick` end to end (issue #8): the report files, their columns, and numbers that must
+//! behave — the Monte Carlo reference's own error falls as its sample count grows (its noise is an
+//! independent check that the truth and the comparison work), every error is a finite fraction, and
+//! the Pareto front is non-empty and undominated.
+
+mod common;
+
+use std::process::Command;
+
+#[test]
+fn quick_study_writes_csv_svg_and_markdown() {
+    let dir = common::temp_dir("study");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = Command::new(env!("CARGO_BIN_EXE_glint")).current_dir(root).args(["study", "--quick", "--out"]).arg(&dir).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("study.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    for col in ["knob", "value", "bake_secs", "transfer_secs", "fit_secs", "frame_secs", "bake_bytes", "rel_rmse", "residual", "pareto"] {
+        assert!(header.contains(&col), "column {col} missing: {header:?}");
+    }
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    // Values hold no commas except inside the quoted `value` column; split it out first.
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| {
+            let (knob, rest) = l.split_once(',').unwrap();
+            let rest = rest.strip_prefix('"').unwrap();
+            let (value, rest) = rest.split_once("\",").unwrap();
+            let mut v = vec![knob.to_string(), value.to_string()];
+            v.extend(rest.split(',').map(str::to_string));
+            v
+        })
+        .collect();
+    assert!(rows.len() >= 10, "{} rows", rows.len());
+    let num = |r: &Vec<String>, c: &str| -> f64 { r[col(c)].parse().unwrap() };
+    let knobs: Vec<&str> = rows.iter().map(|r| r[0].as_str()).collect();
+    for k in ["default", "direction_set_n", "visibility_cell_deg", "cut_epsilon", "lobes_J", "sigma", "fit_resolution", "table_resolution", "truth_spp"] {
+        assert!(knobs.contains(&k), "knob {k} not swept: {knobs:?}");
+    }
+    for r in &rows {
+        let e = num(r, "rel_rmse");
+        assert!(e.is_finite() && e > 0.0 && e < 0.5, "{r:?}");
+        assert!(num(r, "bake_bytes") > 0.0 && num(r, "frame_secs") > 0.0, "{r:?}");
+    }
+    let spp: Vec<(f64, f64)> = rows.iter().filter(|r| r[0] == "truth_spp").map(|r| (r[1].parse().unwrap(), num(r, "rel_rmse"))).collect();
+    assert!(spp.len() >= 2);
+    for w in spp.windows(2) {
+        assert!(w[0].0 < w[1].0 && w[0].1 > w[1].1, "the reference's error must fall with its samples: {spp:?}");
+    }
+    // Monte Carlo error falls as 1/√spp: 4× the samples, about half the error (noise-dominated here).
+    let ratio = spp[0].1 / spp[1].1;
+    assert!((1.5..3.0).contains(&ratio), "16 → 64 spp error ratio {ratio}");
+    let front: Vec<&Vec<String>> = rows.iter().filter(|r| r[col("pareto")] == "true").collect();
+    assert!(!front.is_empty());
+    let total = |r: &Vec<String>| num(r, "bake_secs") + num(r, "transfer_secs") + num(r, "fit_secs") + num(r, "frame_secs");
+    for f in &front {
+        assert!(f[0] != "truth_spp");
+        for o in rows.iter().filter(|o| o[0] != "truth_spp") {
+            assert!(!(total(o) < total(f) - 1e-3 && num(o, "rel_rmse") < num(f, "rel_rmse") - 1e-5), "{f:?} is dominated by {o:?}");
+        }
+    }
+    let svg = std::fs::read_to_string(dir.join("study.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert!(svg.matches("<circle").count() >= rows.len() - spp.len());
+    let md = std::fs::read_to_string(dir.join("study.md")).unwrap();
+    assert_eq!(md.lines().filter(|l| l.starts_with("| ")).count(), rows.len() + 1, "header + one line per row");
+    std::fs::remove_dir_all(dir).unwrap();
+}
