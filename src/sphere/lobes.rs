@@ -37,10 +37,11 @@ impl LobeLayout {
     /// The paper's layout: 7×7 hemicube, J = 147.
     pub const PAPER: LobeLayout = LobeLayout::Hemicube { n: 7 };
 
-    /// Number of lobes J.
+    /// Number of lobes J (saturating: a layout read from a file may name any n, and 3n² must not
+    /// overflow before [`LobeLayout::centres`] refuses it).
     pub fn count(&self) -> usize {
         match *self {
-            LobeLayout::Hemicube { n } => 3 * n * n,
+            LobeLayout::Hemicube { n } => n.saturating_mul(n).saturating_mul(3),
             LobeLayout::Fibonacci { count } | LobeLayout::Isotropic { count } => count,
         }
     }

@@ -1,0 +1,207 @@
+//! Property tests (proptest, issue #9) of the BRDF's physical guarantees over random inputs:
+//!
+//! - f_s is finite, ≥ 0 and reciprocal for random lobe layouts, λ, non-negative coefficients, F0 and
+//!   directions (grazing ones included);
+//! - after a constrained fit (random non-negative-target problems solved by the library's QP with the
+//!   energy rows on) the directional albedo ∫ f_r cos θi dωi stays ≤ 1.01 on 10⁴ random outgoing
+//!   directions, although the energy rows constrain only N_l of them. The albedo is integrated here
+//!   independently of the energy table: in *incident*-direction space (the table integrates in
+//!   half-vector space), per lobe over a polar cap about the lobe's mirror direction.
+
+use glam::DVec3;
+use glint::brdf::{DistributionBrdf, EnergyTable};
+use glint::fit::problem::{ChannelSystem, NormalEquations};
+use glint::math::GaussLegendre;
+use glint::sphere::{LobeLayout, LobeSet};
+use proptest::prelude::*;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// A unit direction on the upper hemisphere from (u, v) ∈ [0, 1]²; `grazing` pushes z towards 0.
+fn hemisphere(u: f64, v: f64, grazing: bool) -> DVec3 {
+    let z = if grazing { (1e-9f64).max(u.powi(8) * 1e-3) } else { u.max(1e-12) };
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * v;
+    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+fn layout_strategy() -> impl Strategy<Value = LobeLayout> {
+    prop_oneof![
+        (1usize..=5).prop_map(|n| LobeLayout::Hemicube { n }),
+        (1usize..=80).prop_map(|count| LobeLayout::Fibonacci { count }),
+        (1usize..=40).prop_map(|count| LobeLayout::Isotropic { count }),
+    ]
+}
+
+/// λ log-uniform over [0.5, 10⁴] (σ from ~60° down to ~0.4°).
+fn lambda_strategy() -> impl Strategy<Value = f64> {
+    (0.0f64..1.0).prop_map(|t| 0.5 * (2e4f64).powf(t))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn specular_is_finite_non_negative_and_reciprocal(
+        layout in layout_strategy(),
+        lambda in lambda_strategy(),
+        seeds in prop::collection::vec(0.0f64..3.0, 80),
+        zeros in prop::collection::vec(any::<bool>(), 80),
+        f0 in 0.0f64..=1.0,
+        pairs in prop::collection::vec((0.0f64..1.0, 0.0f64..1.0, any::<bool>(), 0.0f64..1.0, 0.0f64..1.0, any::<bool>()), 64),
+    ) {
+        let lobes = LobeSet::new(layout, lambda).unwrap();
+        // Sparse, non-negative coefficients (many exactly 0, as fits produce).
+        let coefficients: Vec<f64> = (0..lobes.len()).map(|j| if zeros[j % 80] { 0.0 } else { seeds[j % 80] }).collect();
+        let brdf = DistributionBrdf { lobes, coefficients, f0, rho_d: 0.0 };
+        for &(u1, v1, g1, u2, v2, g2) in &pairs {
+            let (wi, wo) = (hemisphere(u1, v1, g1), hemisphere(u2, v2, g2));
+            let a = brdf.specular(wi, wo);
+            let b = brdf.specular(wo, wi);
+            prop_assert!(a.is_finite() && a >= 0.0, "f_s({wi}, {wo}) = {a}");
+            prop_assert!((a - b).abs() <= 1e-12 * a.max(b) + 1e-300, "f_s({wi}, {wo}) = {a} but f_s({wo}, {wi}) = {b}");
+            // Below the horizon, f_s is 0 in either slot.
+            let below = DVec3::new(wi.x, wi.y, -wi.z);
+            prop_assert_eq!(brdf.specular(below, wo), 0.0);
+            prop_assert_eq!(brdf.specular(wo, below), 0.0);
+        }
+    }
+}
+
+/// Gauss–Legendre points in the cap's radius and trapezoid points in its azimuth.
+const RADIAL: usize = 16;
+const AZIMUTH: usize = 32;
+
+/// ∫_{H²} f_s(wi, wo) cos θi dωi for one lobe (coefficient 1), by Gauss–Legendre × trapezoid over a
+/// polar cap in wi-space about the mirror direction of wo in the lobe centre. The map h → wi is
+/// 2-Lipschitz, so the cap of radius 2α, α the angle where G falls below e⁻³⁶, holds the whole lobe.
+fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLegendre) -> f64 {
+    let lambda = brdf.lobes.lambda();
+    let mut xi = brdf.lobes.centres()[j];
+    if brdf.lobes.layout().is_isotropic() {
+        unreachable!("ring lobes are not caps");
+    }
+    // The relevant half-vectors satisfy wo·h ≥ 0: project ξ onto that hemisphere.
+    if xi.dot(wo) < 0.0 {
+        xi = (xi - xi.dot(wo) * wo).try_normalize().unwrap_or(DVec3::Z);
+    }
+    let centre = (2.0 * wo.dot(xi) * xi - wo).normalize();
+    // G = exp(2λ(cos α − 1)) < e⁻³⁶ beyond 1 − cos α = 18/λ.
+    let cos_alpha = 1.0 - 18.0 / lambda;
+    let alpha = if cos_alpha <= -1.0 { PI } else { cos_alpha.acos() };
+    let radius = (2.0 * alpha).min(PI);
+    let (u, v) = centre.any_orthonormal_pair();
+    let mut sum = 0.0;
+    for (t, wt) in rule.on_interval(0.0, radius) {
+        let (st, ct) = t.sin_cos();
+        let mut ring = 0.0;
+        for k in 0..AZIMUTH {
+            let phi = 2.0 * PI * (k as f64 + 0.5) / AZIMUTH as f64;
+            let wi = ct * centre + st * (phi.cos() * u + phi.sin() * v);
+            if wi.z <= 0.0 {
+                continue;
+            }
+            let Some(h) = (wi + wo).try_normalize() else { continue };
+            ring += brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * wi.z;
+        }
+        sum += wt * st * ring * 2.0 * PI / AZIMUTH as f64;
+    }
+    sum
+}
+
+/// Gauss–Legendre integration of the same lobe over the whole hemisphere in (cos θi, φi) on a very
+/// fine grid: the reference that checks the cap quadrature itself (broad lobes only).
+fn lobe_albedo_hemisphere(brdf: &DistributionBrdf, j: usize, wo: DVec3) -> f64 {
+    let rule = GaussLegendre::new(200);
+    let mut sum = 0.0;
+    for (z, wz) in rule.on_interval(0.0, 1.0) {
+        let r = (1.0 - z * z).sqrt();
+        for (phi, wp) in rule.on_interval(0.0, 2.0 * PI) {
+            let wi = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+            let Some(h) = (wi + wo).try_normalize() else { continue };
+            sum += wz * wp * brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * z;
+        }
+    }
+    sum
+}
+
+#[test]
+fn cap_quadrature_matches_a_full_hemisphere_grid() {
+    let rule = GaussLegendre::new(RADIAL);
+    for (lambda, j) in [(1.0, 0), (10.0, 3), (40.0, 7), (300.0, 1)] {
+        let lobes = LobeSet::new(LobeLayout::Hemicube { n: 2 }, lambda).unwrap();
+        let brdf = DistributionBrdf { coefficients: vec![1.0; lobes.len()], lobes, f0: 0.3, rho_d: 0.0 };
+        for wo in [DVec3::Z, DVec3::new(0.6, 0.2, 0.5).normalize(), DVec3::new(-0.9, 0.3, 0.05).normalize()] {
+            let cap = lobe_albedo_wi(&brdf, j, wo, &rule);
+            let full = lobe_albedo_hemisphere(&brdf, j, wo);
+            assert!((cap - full).abs() <= 2e-3 * full.max(1e-3), "λ={lambda} j={j} wo={wo}: cap {cap} vs grid {full}");
+        }
+    }
+}
+
+/// A random fit problem: T (N × J) ≥ 0, targets ≥ 0 made from an energy-infeasible p (so the energy
+/// rows bind) plus noise; normal equations formed here, solved by the library's constrained QP.
+fn fit_random(lobes: &LobeSet, energy: &EnergyTable, f0: f64, rho_d: f64, seed: u64, brightness: f64) -> Vec<f64> {
+    let mut rng = glint::math::Rng::new(seed);
+    let j = lobes.len();
+    let n = 3 * j + 10;
+    let t: Vec<f64> = (0..n * j).map(|_| rng.next_f64().powi(3)).collect();
+    let truth: Vec<f64> = (0..j).map(|_| if rng.next_f64() < 0.3 { brightness * rng.next_f64() } else { 0.0 }).collect();
+    let target: Vec<f64> = (0..n).map(|i| ((0..j).map(|k| t[i * j + k] * truth[k]).sum::<f64>() + 0.1 * rng.next_f64()).max(0.0)).collect();
+    let mut h = vec![0.0; j * j];
+    let mut r = vec![0.0; j];
+    for i in 0..n {
+        let row = &t[i * j..(i + 1) * j];
+        for a in 0..j {
+            r[a] += row[a] * target[i];
+            for b in 0..j {
+                h[a * j + b] += row[a] * row[b];
+            }
+        }
+    }
+    let constant = target.iter().map(|b| b * b).sum();
+    let equations = NormalEquations { j, h, r, constant, weight_sum: n as f64, pixels: n };
+    let system = ChannelSystem::new(equations, Some((energy, f0)), rho_d).unwrap();
+    let fit = system.solve(None).unwrap();
+    assert!(fit.coefficients.iter().all(|c| c.is_finite() && *c >= 0.0));
+    fit.coefficients
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 5, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn fitted_albedo_stays_below_one_on_ten_thousand_directions(
+        layout in prop_oneof![(2usize..=4).prop_map(|n| LobeLayout::Hemicube { n }), (6usize..=40).prop_map(|count| LobeLayout::Fibonacci { count })],
+        lambda in (0.0f64..1.0).prop_map(|t| 1.0 * (300.0f64).powf(t)),
+        f0 in 0.0f64..=1.0,
+        rho_d in 0.0f64..0.9,
+        seed in any::<u64>(),
+        brightness in 1.0f64..100.0,
+    ) {
+        let lobes = LobeSet::new(layout, lambda).unwrap();
+        let energy = EnergyTable::with_defaults(&lobes);
+        let coefficients = fit_random(&lobes, &energy, f0, rho_d, seed, brightness);
+        let brdf = DistributionBrdf { lobes, coefficients, f0, rho_d };
+        let active: Vec<usize> = (0..brdf.coefficients.len()).filter(|&j| brdf.coefficients[j] > 0.0).collect();
+        let rule = GaussLegendre::new(RADIAL);
+        let mut rng = glint::math::Rng::new(seed ^ 0x9e37_79b9_7f4a_7c15);
+        // Uniform in solid angle, plus every 10th direction within 3° of the horizon.
+        let directions: Vec<DVec3> = (0..10_000)
+            .map(|k| if k % 10 == 0 { hemisphere(rng.next_f64() * 0.05, rng.next_f64(), false) } else { rng.hemisphere_vector() })
+            .collect();
+        // The diffuse part integrates to ρd exactly.
+        let albedos: Vec<f64> = directions
+            .par_iter()
+            .map(|&wo| rho_d + active.iter().map(|&j| brdf.coefficients[j] * lobe_albedo_wi(&brdf, j, wo, &rule)).sum::<f64>())
+            .collect();
+        prop_assert!(albedos.iter().all(|a| a.is_finite()));
+        let (k, &a) = albedos.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).unwrap();
+        let worst = (a, directions[k]);
+        // The energy rows themselves hold at their own directions (the solver's guarantee).
+        let rows = energy.albedo(&brdf.coefficients, f0);
+        prop_assert!(rows.iter().all(|&a| a <= 1.0 - rho_d + 1e-9));
+        prop_assert!(worst.0 <= 1.01, "{layout:?} λ={lambda:.2} F0={f0:.3} ρd={rho_d:.3}: albedo {:.4} at wo={} ({} active lobes)", worst.0, worst.1, active.len());
+    }
+}
+
