@@ -46,7 +46,7 @@ fn fit_writes_a_material_and_a_reloadable_problem() {
     assert_eq!(npy_shape(&dump.join("B.npy")), vec![n, 3]);
     assert_eq!(npy_shape(&dump.join("w.npy")), vec![n]);
     assert_eq!(npy_shape(&dump.join("E.npy")), vec![n, 3]);
-    assert_eq!(npy_shape(&dump.join("energy_rows.npy")), vec![32, j]);
+    assert_eq!(npy_shape(&dump.join("energy_rows.npy")), vec![33, j]); // 32 elevations + the horizon (energy::default_outgoing)
     assert_eq!(npy_shape(&dump.join("bounds.npy")), vec![3]);
     assert_eq!(npy_shape(&dump.join("c.npy")), vec![3, j]);
     let meta: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dump.join("meta.json")).unwrap()).unwrap();
