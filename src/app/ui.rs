@@ -199,6 +199,12 @@ impl GlintApp {
         Some([((p.x - rect.min.x) / rect.width()) as f64 * size[0] as f64, ((p.y - rect.min.y) / rect.height()) as f64 * size[1] as f64])
     }
 
+    /// Replaces the settings (as the side panel would) and refits: one history step.
+    pub fn set_settings(&mut self, settings: super::state::Settings) {
+        self.doc.settings = settings;
+        self.commit();
+    }
+
     /// Replaces the strokes with `views` (a stroke file), shows the first of them and fits.
     pub fn replay(&mut self, views: Vec<ViewStrokes>) {
         if let Some(first) = views.first() {
@@ -535,9 +541,9 @@ impl GlintApp {
         ui.strong("Material");
         let s = &mut self.doc.settings;
         ui.horizontal(|ui| {
-            ui.label("ρd");
+            let label = ui.label("ρd (R, G, B)");
             for c in 0..3 {
-                changed |= ui.add(egui::DragValue::new(&mut s.rho_d[c]).speed(0.005).range(0.0..=1.0)).changed();
+                changed |= ui.add(egui::DragValue::new(&mut s.rho_d[c]).speed(0.005).range(0.0..=1.0)).labelled_by(label.id).changed();
             }
         });
         changed |= ui.add(egui::Slider::new(&mut s.f0, 0.0..=1.0).text("F0")).changed();
@@ -553,7 +559,8 @@ impl GlintApp {
         ui.separator();
         ui.strong("Environment");
         ui.horizontal(|ui| {
-            ui.text_edit_singleline(&mut self.env_path);
+            let label = ui.label("file");
+            ui.text_edit_singleline(&mut self.env_path).labelled_by(label.id);
             if ui.button("Load").clicked() {
                 self.worker.send(Command::SetEnv(PathBuf::from(&self.env_path)));
             }
@@ -597,7 +604,10 @@ impl GlintApp {
         }
         ui.separator();
         ui.strong("Session");
-        ui.text_edit_singleline(&mut self.session_path);
+        ui.horizontal(|ui| {
+            let label = ui.label("file");
+            ui.text_edit_singleline(&mut self.session_path).labelled_by(label.id);
+        });
         ui.horizontal(|ui| {
             if ui.button("Save").clicked() {
                 let path = PathBuf::from(&self.session_path);
@@ -626,7 +636,8 @@ impl GlintApp {
         ui.separator();
         ui.strong("Export (EXR table, glTF, USD, MERL)");
         ui.horizontal(|ui| {
-            ui.text_edit_singleline(&mut self.export_dir);
+            let label = ui.label("folder");
+            ui.text_edit_singleline(&mut self.export_dir).labelled_by(label.id);
             if ui.add_enabled(self.last_fit.is_some(), egui::Button::new("Export")).clicked() {
                 let name = self.opts.scene.file_stem().map_or("material".into(), |s| s.to_string_lossy().into_owned());
                 self.worker.send(Command::Export { dir: PathBuf::from(&self.export_dir), name });
