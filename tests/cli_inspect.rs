@@ -99,9 +99,9 @@ fn text_output_and_pending_subcommands() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("vertices   1839") && text.contains("triangles  3674"), "{text}");
     // Subcommands of later issues refuse clearly instead of pretending.
-    let out = glint(&["app"]);
+    let out = glint(&["study"]);
     assert_eq!(out.status.code(), Some(3));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("issue #7"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("issue #8"));
     // A missing file: one line, exit 1.
     let out = glint(&["inspect", "/nonexistent/x.glb"]);
     assert_eq!(out.status.code(), Some(1));
