@@ -99,13 +99,7 @@ impl Offscreen {
             wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
         );
         self.ctx.queue.submit(user.into_iter().chain(std::iter::once(encoder.finish())));
-        let (tx, rx) = std::sync::mpsc::channel();
-        buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| AppError::Stage(format!("screenshot readback: {e}")))?;
-        rx.recv().map_err(|e| AppError::Stage(e.to_string()))?.map_err(|e| AppError::Stage(format!("screenshot readback: {e}")))?;
-        let mapped = buffer.slice(..).get_mapped_range().map_err(|e| AppError::Stage(e.to_string()))?;
+        let mapped = crate::gpu::preview::read_buffer(&self.ctx, &buffer).map_err(|e| AppError::Stage(format!("screenshot readback: {e}")))?;
         let mut rgba = Vec::with_capacity((w * h * 4) as usize);
         for y in 0..h as usize {
             rgba.extend_from_slice(&mapped[y * row as usize..y * row as usize + w as usize * 4]);
