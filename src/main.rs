@@ -34,8 +34,8 @@ enum Command {
     Render(RenderArgs),
     /// Export a fitted material: p(h) EXR table, glTF (.glb), USD (.usda), MERL (.binary).
     Export(ExportArgs),
-    /// The interactive painting app (issue #7).
-    App(Pending),
+    /// The painting app: paint highlights on the object, glint fits the BRDF on release.
+    App(AppArgs),
     /// Accuracy against time: sweep each accuracy knob from the defaults; write study.csv, study.svg
     /// (error against time, Pareto front) and study.md.
     Study(StudyArgs),
@@ -78,6 +78,34 @@ struct RenderArgs {
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(clap::Args)]
+struct AppArgs {
+    /// The scene: .glb or .gltf (default: the bundled bunny).
+    scene: Option<PathBuf>,
+    /// Equirectangular environment map: .exr or .hdr (default: the bundled studio map).
+    #[arg(long)]
+    env: Option<PathBuf>,
+    /// Replay a stroke file (the `glint fit --strokes` format) once the first view is baked.
+    #[arg(long)]
+    replay: Option<PathBuf>,
+    /// Draw the app offscreen (no window, no display needed) after the replay's fit, write this PNG and
+    /// exit.
+    #[arg(long)]
+    screenshot: Option<PathBuf>,
+    /// Window size in points for --screenshot, WxH.
+    #[arg(long, default_value = "1280x760")]
+    size: String,
+    /// Load this session (saved by the app) once the first view is baked.
+    #[arg(long)]
+    session: Option<PathBuf>,
+    /// Where the session is saved after every edit.
+    #[arg(long, default_value = ".glint-autosave.json")]
+    autosave: PathBuf,
+    /// Do not autosave.
+    #[arg(long)]
+    no_autosave: bool,
 }
 
 #[derive(clap::Args)]
@@ -204,14 +232,6 @@ struct StudyArgs {
     out: PathBuf,
 }
 
-#[derive(clap::Args)]
-struct Pending {
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    args: Vec<String>,
-}
-
-/// Exit code for a subcommand this build does not implement yet (distinct from errors, 1, and usage, 2).
-const EXIT_NOT_AVAILABLE: u8 = 3;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -222,7 +242,7 @@ fn main() -> ExitCode {
         Some(Command::Fit(args)) => fit(&args),
         Some(Command::Render(args)) => render(&args),
         Some(Command::Export(args)) => export(&args),
-        Some(Command::App(_)) => return not_available("app", 7),
+        Some(Command::App(args)) => app(&args),
         Some(Command::Study(args)) => study(&args),
         Some(Command::Demo(args)) => demo(&args),
     };
@@ -519,11 +539,67 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
     Ok((w, h))
 }
 
-/// `glint` with no subcommand (`cargo run --release`): the main job that exists in this build. Until the
-/// app lands (issue #7) that is the headless demo, with a note saying so.
+/// `glint` with no subcommand (`cargo run --release`): the app on the bundled bunny under the studio
+/// map; where no window can be opened, the headless demo, saying why.
 fn default_job() -> Result<()> {
-    eprintln!("glint: the painting app comes with issue #7; running the headless demo (glint demo --out demo-out) instead.");
-    demo(&DemoArgs { out: PathBuf::from("demo-out") })
+    let samples = samples_dir();
+    let opts = glint::app::AppOptions {
+        scene: samples.join("bunny.glb"),
+        env: samples.join("studio_1k.exr"),
+        autosave: Some(PathBuf::from(".glint-autosave.json")),
+        session: None,
+        replay: Vec::new(),
+    };
+    match glint::app::run_window(opts) {
+        Ok(()) => Ok(()),
+        Err(e @ glint::app::AppError::NoDisplay(_)) => {
+            eprintln!("glint: cannot open the app ({e}); running the headless demo (glint demo --out demo-out) instead.");
+            demo(&DemoArgs { out: PathBuf::from("demo-out") })
+        }
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// `glint app`: the window, or with --screenshot the app drawn offscreen after a replay.
+fn app(args: &AppArgs) -> Result<()> {
+    let samples = samples_dir();
+    let scene = args.scene.clone().unwrap_or_else(|| samples.join("bunny.glb"));
+    let env = args.env.clone().unwrap_or_else(|| samples.join("studio_1k.exr"));
+    for (what, p) in [("scene", &scene), ("environment map", &env)] {
+        if !p.is_file() {
+            anyhow::bail!("the {what} {} does not exist", p.display());
+        }
+    }
+    let replay = match &args.replay {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+            glint::fit::strokes::parse(&text).with_context(|| p.display().to_string())?
+        }
+        None => Vec::new(),
+    };
+    if let Some(s) = &args.session {
+        let text = std::fs::read_to_string(s).with_context(|| format!("cannot read {}", s.display()))?;
+        glint::app::state::Session::parse(&text).map_err(|e| anyhow::anyhow!("{}: {e}", s.display()))?;
+    }
+    let opts = glint::app::AppOptions {
+        scene,
+        env,
+        autosave: (!args.no_autosave && args.screenshot.is_none()).then(|| args.autosave.clone()),
+        session: args.session.clone(),
+        replay,
+    };
+    match &args.screenshot {
+        Some(out) => {
+            let (w, h) = parse_size(&args.size)?;
+            let r = glint::app::replay_screenshot(opts, out, [w as f32, h as f32], 600.0)?;
+            println!(
+                "wrote {} ({}x{} px); painting possible {:.2} s and first fit prepared {:.2} s after launch; stroke release → preview {:.3} s",
+                out.display(), r.width_px, r.height_px, r.first_fit_possible_secs, r.first_fit_ready_secs, r.release_to_preview_secs
+            );
+            Ok(())
+        }
+        None => Ok(glint::app::run_window(opts)?),
+    }
 }
 
 /// `./samples` when run from the repository, else the samples folder of the source tree it was built from.
@@ -724,7 +800,3 @@ fn demo(args: &DemoArgs) -> Result<()> {
     Ok(())
 }
 
-fn not_available(name: &str, issue: u32) -> ExitCode {
-    eprintln!("glint {name}: not available in this build; it comes with issue #{issue}. Nothing was done.");
-    ExitCode::from(EXIT_NOT_AVAILABLE)
-}

@@ -185,12 +185,13 @@ fn settings(quick: bool, anisotropic: bool, decided_resolution: usize) -> Vec<(S
         push("truth_spp", format!("{s}"), Knobs { truth_spp: Some(s as u32), ..d.clone() });
     }
     // The paper: J = 147 (its hemicube needs a tangent field; a scene without one gets 147 rings),
-    // σ = π/40, fit at 160×120; N_l = 192 energy rows is glint's only setting.
+    // σ = π/40, fit at 160×120. The paper's N_l = 192 energy rows are always in glint's set, which adds
+    // 64 near-horizon rows (256 in all; method.md §9, tests/properties.rs).
     if quick {
         return rows;
     }
     let paper_layout = if anisotropic { LobeLayout::PAPER } else { LobeLayout::Isotropic { count: 147 } };
-    let label = format!("J 147 ({}), σ π/40, fit 160x120, N_l 192", paper_layout.name());
+    let label = format!("J 147 ({}), σ π/40, fit 160x120, N_l 192+64", paper_layout.name());
     push("paper", label, Knobs { layout: Some(paper_layout), sigma: srbf::PAPER_SIGMA, fit_size: Some((160, 120)), ..d });
     rows
 }

@@ -92,16 +92,16 @@ fn dwab_environments_decode_with_negative_texels_clamped_and_counted() {
 }
 
 #[test]
-fn text_output_and_pending_subcommands() {
+fn text_output_and_usage_errors() {
     let scene = assets().join("glb/bunny.glb");
     let out = glint(&["inspect", scene.to_str().unwrap()]);
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("vertices   1839") && text.contains("triangles  3674"), "{text}");
-    // Subcommands of later issues refuse clearly instead of pretending.
-    let out = glint(&["app"]);
-    assert_eq!(out.status.code(), Some(3));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("issue #7"));
+    // A subcommand without a required argument: clap's usage error, exit 2, nothing run.
+    let out = glint(&["study"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--out"));
     // A missing file: one line, exit 1.
     let out = glint(&["inspect", "/nonexistent/x.glb"]);
     assert_eq!(out.status.code(), Some(1));

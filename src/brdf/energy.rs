@@ -226,6 +226,27 @@ impl EnergyTable {
         Self::new(lobes, &default_outgoing(lobes), &EnergyQuadrature::default())
     }
 
+    /// [`EnergyTable::with_defaults`], remembered per lobe set (layout and λ) for the life of the
+    /// process: the table depends on nothing else (F0 enters as g = F0·a + b), and integrating it is
+    /// the bulk of a fit's time (a few hundred ms per lobe), so a session re-fitting on every stroke
+    /// pays it once. At most 8 lobe sets are kept.
+    pub fn cached(lobes: &LobeSet) -> std::sync::Arc<Self> {
+        use std::sync::{Arc, Mutex};
+        static CACHE: Mutex<Vec<(String, Arc<EnergyTable>)>> = Mutex::new(Vec::new());
+        let key = format!("{:?}/{:016x}", lobes.layout(), lobes.lambda().to_bits());
+        if let Some(hit) = CACHE.lock().ok().and_then(|c| c.iter().find(|(k, _)| *k == key).map(|(_, t)| t.clone())) {
+            return hit;
+        }
+        let table = Arc::new(Self::with_defaults(lobes));
+        if let Ok(mut c) = CACHE.lock() {
+            if c.len() >= 8 {
+                c.remove(0);
+            }
+            c.push((key, table.clone()));
+        }
+        table
+    }
+
     /// Outgoing directions (local).
     pub fn outgoing(&self) -> &[DVec3] {
         &self.outgoing
@@ -299,5 +320,17 @@ mod tests {
             let want = brute(xi, lambda, wo, 0.04, n);
             assert!(((got - want) / want).abs() < 1e-3, "λ={lambda} got={got} want={want}");
         }
+    }
+
+    #[test]
+    fn the_cache_returns_the_same_table_for_the_same_lobes() {
+        let lobes = LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 6 }, 40.0).unwrap();
+        let a = EnergyTable::cached(&lobes);
+        let b = EnergyTable::cached(&lobes);
+        assert!(std::sync::Arc::ptr_eq(&a, &b));
+        let fresh = EnergyTable::with_defaults(&lobes);
+        assert_eq!(a.matrix(0.04), fresh.matrix(0.04));
+        let other = EnergyTable::cached(&LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 6 }, 41.0).unwrap());
+        assert!(!std::sync::Arc::ptr_eq(&a, &other), "λ is part of the key");
     }
 }

@@ -146,7 +146,7 @@ pub fn fit(
         let material = Material::new(&lobes, settings.sigma, [zero.clone(), zero.clone(), zero], settings.rho_d, settings.f0, stats);
         return Ok(FitOutcome { material, views, energy: None, channels: Vec::new() });
     }
-    let energy = settings.energy_limit.then(|| EnergyTable::with_defaults(&lobes));
+    let energy = settings.energy_limit.then(|| EnergyTable::clone(&EnergyTable::cached(&lobes)));
     let start = std::time::Instant::now();
     let data: Vec<ViewData> = views.iter().map(|v| ViewData { transfer: &v.transfer, target: &v.target, weight: &v.weight }).collect();
     let channels = solve_rgb(&data, energy.as_ref().map(|e| (e, settings.f0)), settings.rho_d)?;

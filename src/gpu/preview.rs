@@ -466,8 +466,8 @@ fn check_size(ctx: &GpuContext, bytes: u64) -> Result<(), GpuError> {
     Ok(())
 }
 
-/// Maps a MAP_READ buffer after the queue's work and copies it out.
-fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+/// Maps a MAP_READ buffer after the queue's work and copies it out (also the app's screenshot path).
+pub fn read_buffer(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);

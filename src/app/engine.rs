@@ -1,0 +1,337 @@
+//! The app's engine: one scene under one environment, its (growing) bake, the wgpu preview, and fits
+//! that reuse everything a stroke does not change.
+//!
+//! Inputs: the scene, the environment, cuts as the bake delivers them (first the vertices the first
+//! view sees, then all), a [`Document`] per fit, a view per frame. Outputs: preview frames (linear
+//! [`Image`]s with the environment behind the object), fitted [`Material`]s with their p(h) table and
+//! timings, exported files.
+//! Invariants: calls only the library's public stage functions (transfer, strokes, the per-channel
+//! QP, tabulation, the GPU preview, the exporters); a view's transfer is computed once per (view,
+//! rotation, σ, J, F0) and kept; each channel's solve is warm-started from the previous fit's active
+//! set (the solver is exact from any start, so only the time changes); the strokes paint over the
+//! diffuse rendering (c = 0) exactly as `glint fit` does, so the same strokes give the same material.
+
+use super::AppError;
+use super::state::Document;
+use crate::bake::Cuts;
+use crate::brdf::EnergyTable;
+use crate::env::EnvMap;
+use crate::fit::material::{FitStats, Material};
+use crate::fit::problem::{ChannelSystem, ViewData, normal_equations};
+use crate::fit::qp::Constraint;
+use crate::fit::run::camera_for;
+use crate::fit::strokes::{ViewSpec, targets};
+use crate::gpu::{GpuContext, GpuPreview};
+use crate::light::LightSums;
+use crate::render::{Image, PhTable, PrtSettings, table};
+use crate::scene::{Camera, Scene};
+use crate::sphere::{DirectionSet, LightTree, LobeSet, srbf};
+use crate::transfer::{Transfer, TransferContext};
+use glam::Vec4;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Where the time of one fit went (seconds).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FitTimings {
+    /// Transfers of views not seen before and energy rows of new lobes (≈ 0 when all were cached).
+    pub transfer_secs: f64,
+    /// Normal equations and the three QP solves.
+    pub solve_secs: f64,
+    /// The p(h) table and its upload.
+    pub table_secs: f64,
+    /// The preview frame (GPU shade, raster, readback, background).
+    pub render_secs: f64,
+}
+
+/// A finished fit.
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    pub material: Material,
+    pub timings: FitTimings,
+    /// The p(h) table as an image (resolution², hemi-octahedral), `None` without specular lobes.
+    pub table_image: Option<Image>,
+}
+
+/// Lobes, energy rows and the key they were built for.
+struct LobeCache {
+    key: (u64, usize),
+    lobes: LobeSet,
+    energy: Option<EnergyTable>,
+}
+
+/// The engine (see the module docs).
+pub struct Engine {
+    scene: Arc<Scene>,
+    env: EnvMap,
+    env_path: PathBuf,
+    tangents: Option<Vec<Vec4>>,
+    anisotropic: bool,
+    set: DirectionSet,
+    tree: LightTree,
+    cuts: Option<Cuts>,
+    ctx: GpuContext,
+    gpu: Option<GpuPreview>,
+    light: Option<(f64, LightSums)>,
+    lobes: Option<LobeCache>,
+    transfers: HashMap<String, Transfer>,
+    warm: Option<[Vec<Constraint>; 3]>,
+    /// ρd, F0 and the table on the GPU now (re-uploaded when the preview is rebuilt).
+    shown: Option<([f64; 3], f64, Option<PhTable>)>,
+    material: Option<Material>,
+}
+
+impl Engine {
+    /// An engine for a scene whose bake decided `resolution` and `anisotropic`; no cuts yet.
+    pub fn new(scene: Arc<Scene>, env: EnvMap, env_path: PathBuf, tangents: Option<Vec<Vec4>>, anisotropic: bool, resolution: usize) -> Result<Self, AppError> {
+        let set = DirectionSet::cube(resolution).map_err(|e| AppError::Stage(e.to_string()))?;
+        let tree = LightTree::build(&set);
+        let ctx = GpuContext::headless()?;
+        Ok(Self {
+            scene,
+            env,
+            env_path,
+            tangents,
+            anisotropic,
+            set,
+            tree,
+            cuts: None,
+            ctx,
+            gpu: None,
+            light: None,
+            lobes: None,
+            transfers: HashMap::new(),
+            warm: None,
+            shown: None,
+            material: None,
+        })
+    }
+
+    /// The GPU the preview runs on, in words.
+    pub fn device(&self) -> String {
+        self.ctx.describe()
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn env_path(&self) -> &Path {
+        &self.env_path
+    }
+
+    /// The last fitted material.
+    pub fn material(&self) -> Option<&Material> {
+        self.material.as_ref()
+    }
+
+    /// New cuts from the bake (partial: unbaked vertices have empty cuts and render black). Rebuilds
+    /// the GPU buffers and keeps the cached transfers (a baked vertex's cut never changes).
+    pub fn set_cuts(&mut self, cuts: Cuts) -> Result<(), AppError> {
+        let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+        let mut gpu = GpuPreview::new(&self.ctx, &self.scene.mesh, &cuts, &self.tree, self.tangents.as_deref(), settings)?;
+        if let Some((_, light)) = &self.light {
+            gpu.set_light(light, &self.tree)?;
+        }
+        if let Some((rho_d, f0, t)) = &self.shown {
+            gpu.set_material(*rho_d, *f0, t.as_ref())?;
+        }
+        self.gpu = Some(gpu);
+        self.cuts = Some(cuts);
+        Ok(())
+    }
+
+    /// Replaces the environment (the bake stays: visibility does not depend on the light).
+    pub fn set_env(&mut self, path: &Path) -> Result<(), AppError> {
+        self.env = crate::env::load(path).map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;
+        self.env_path = path.to_path_buf();
+        self.light = None;
+        self.transfers.clear();
+        Ok(())
+    }
+
+    fn ensure_light(&mut self, rotation_deg: f64) -> Result<(), AppError> {
+        let rotation = rotation_deg.to_radians();
+        if self.light.as_ref().is_some_and(|(r, _)| *r == rotation) {
+            return Ok(());
+        }
+        let light = LightSums::new(&self.env, &self.set, &self.tree, rotation);
+        if let Some(gpu) = &mut self.gpu {
+            gpu.set_light(&light, &self.tree)?;
+        }
+        self.light = Some((rotation, light));
+        Ok(())
+    }
+
+    fn ensure_lobes(&mut self, doc: &Document) -> Result<(), AppError> {
+        let s = &doc.settings;
+        let layout = s.layout(self.anisotropic);
+        let key = (s.sigma.to_bits(), layout.count());
+        if self.lobes.as_ref().is_some_and(|l| l.key == key) {
+            return Ok(());
+        }
+        let lambda = srbf::lambda_from_sigma(s.sigma).map_err(|e| AppError::Stage(e.to_string()))?;
+        let lobes = LobeSet::new(layout, lambda).map_err(|e| AppError::Stage(e.to_string()))?;
+        self.lobes = Some(LobeCache { key, energy: None, lobes });
+        self.transfers.clear();
+        self.warm = None;
+        Ok(())
+    }
+
+    /// The camera of a view at an image size.
+    pub fn camera(&self, view: &ViewSpec, size: [u32; 2]) -> Result<Camera, AppError> {
+        camera_for(&self.scene, view, size).map_err(|e| AppError::Stage(e.to_string()))
+    }
+
+    /// Computes (once) the transfer of a view for the document's settings; returns its cache key and
+    /// fit size.
+    fn ensure_transfer(&mut self, doc: &Document, view: &ViewSpec, image_size: [u32; 2]) -> Result<(String, (u32, u32)), AppError> {
+        let s = &doc.settings;
+        let fit_size = ((image_size[0] / 4).max(1), (image_size[1] / 4).max(1));
+        // Keyed by the camera itself: a view named by camera name or by index is one view.
+        let camera = self.camera(view, image_size)?;
+        let key = format!("{:?}|{}|{fit_size:?}|{}|{}|{}|{}", camera.world_from_camera, camera.yfov_rad, s.env_rotation_deg, s.sigma, s.lobe_count, s.f0);
+        if !self.transfers.contains_key(&key) {
+            let (Some(cuts), Some(lobes), Some((_, light))) = (&self.cuts, &self.lobes, &self.light) else {
+                return Err(AppError::NotReady("cuts, lobes and light come before a transfer"));
+            };
+            let ctx = TransferContext::new(&self.scene.mesh, cuts, &self.tree, &lobes.lobes, self.tangents.as_deref(), None);
+            let transfer = ctx.compute(light, &camera, fit_size.0, fit_size.1, s.f0);
+            self.transfers.insert(key.clone(), transfer);
+        }
+        Ok((key, fit_size))
+    }
+
+    /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and the
+    /// view's transfer. Returns the seconds it took.
+    pub fn prepare(&mut self, doc: &Document, view: &ViewSpec, size: [u32; 2]) -> Result<f64, AppError> {
+        let start = Instant::now();
+        self.ensure_light(doc.settings.env_rotation_deg)?;
+        self.ensure_lobes(doc)?;
+        if let Some(l) = self.lobes.as_mut()
+            && doc.settings.energy_limit
+            && l.energy.is_none()
+        {
+            l.energy = Some(EnergyTable::with_defaults(&l.lobes));
+        }
+        // The view as a name and as an index are the same camera; strokes may name either.
+        self.ensure_transfer(doc, view, size)?;
+        Ok(start.elapsed().as_secs_f64())
+    }
+
+    /// A preview frame of the current material in a view.
+    pub fn render(&mut self, view: &ViewSpec, size: [u32; 2], rotation_deg: f64) -> Result<Image, AppError> {
+        self.ensure_light(rotation_deg)?;
+        let camera = self.camera(view, size)?;
+        let gpu = self.gpu.as_mut().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+        if self.shown.is_none() {
+            gpu.set_material([0.5; 3], 0.04, None)?;
+            self.shown = Some(([0.5; 3], 0.04, None));
+        }
+        let mut image = gpu.render(&camera, size[0], size[1])?;
+        image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
+        Ok(image)
+    }
+
+    /// Fits the document's strokes (all views in one solve) and shows the material in the preview.
+    pub fn fit(&mut self, doc: &Document) -> Result<FitResult, AppError> {
+        let s = &doc.settings;
+        s.validate().map_err(AppError::Settings)?;
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+        let _ = cuts;
+        self.ensure_light(s.env_rotation_deg)?;
+        self.ensure_lobes(doc)?;
+        let mut timings = FitTimings::default();
+        let views = doc.fit_views();
+        let start = Instant::now();
+        // Transfers of views not seen before.
+        let mut cameras = Vec::with_capacity(views.len());
+        for v in &views {
+            cameras.push(self.ensure_transfer(doc, &v.view, v.image_size)?);
+        }
+        let lobes = self.lobes.as_mut().expect("ensured above");
+        let j = lobes.lobes.len();
+        if s.energy_limit && lobes.energy.is_none() {
+            lobes.energy = Some(EnergyTable::with_defaults(&lobes.lobes));
+        }
+        timings.transfer_secs = start.elapsed().as_secs_f64();
+        let solve_start = Instant::now();
+        let zero = vec![0.0; j];
+        let mut target_sets = Vec::with_capacity(views.len());
+        let (mut off_object, mut strokes) = (0, 0);
+        for (v, (key, fit_size)) in views.iter().zip(&cameras) {
+            let transfer = &self.transfers[key];
+            let current = transfer.render(s.rho_d, [&zero, &zero, &zero]);
+            let pixels: Vec<(u32, u32)> = transfer.pixels.iter().map(|p| (p.x, p.y)).collect();
+            let t = targets(v, &pixels, *fit_size, &current);
+            off_object += t.off_object.len();
+            strokes += v.strokes.len();
+            target_sets.push(t);
+        }
+        let data: Vec<ViewData> =
+            cameras.iter().zip(&target_sets).map(|((key, _), t)| ViewData { transfer: &self.transfers[key], target: &t.target, weight: &t.weight }).collect();
+        let pixels: usize = data.iter().map(|d| d.transfer.pixels.len()).sum();
+        let mut stats = FitStats { pixels, views: views.len(), energy_limit: s.energy_limit, strokes_off_object: off_object, ..FitStats::default() };
+        if off_object > 0 {
+            stats.notes.push(format!("{off_object} stroke(s) touched no pixel of the object and were ignored"));
+        }
+        let coefficients: [Vec<f64>; 3] = if strokes == off_object || pixels == 0 {
+            stats.notes.push("no stroke touched the object: diffuse only".into());
+            [zero.clone(), zero.clone(), zero.clone()]
+        } else {
+            let energy = if s.energy_limit { lobes.energy.as_ref().map(|e| (e, s.f0)) } else { None };
+            let mut fits = Vec::with_capacity(3);
+            for c in 0..3 {
+                let system = ChannelSystem::new(normal_equations(&data, c, s.rho_d[c]), energy, s.rho_d[c]).map_err(|e| AppError::Stage(e.to_string()))?;
+                let warm = self.warm.as_ref().map(|w| w[c].as_slice());
+                fits.push(system.solve(warm).map_err(|e| AppError::Stage(e.to_string()))?);
+            }
+            stats.residual_rms = std::array::from_fn(|c| fits[c].residual_rms);
+            stats.active_energy_rows = std::array::from_fn(|c| fits[c].active_energy_rows);
+            stats.active_constraints = std::array::from_fn(|c| fits[c].active.len());
+            stats.iterations = std::array::from_fn(|c| fits[c].iterations);
+            self.warm = Some(std::array::from_fn(|c| fits[c].active.clone()));
+            std::array::from_fn(|c| fits[c].coefficients.clone())
+        };
+        stats.solve_seconds = solve_start.elapsed().as_secs_f64();
+        timings.solve_secs = stats.solve_seconds;
+        let material = Material::new(&lobes.lobes, s.sigma, coefficients, s.rho_d, s.f0, stats);
+        let table_start = Instant::now();
+        let specular = material.coefficients.iter().flatten().any(|c| *c > 0.0);
+        let table = specular.then(|| {
+            let c = &material.coefficients;
+            PhTable::build(&lobes.lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lobes.lambda()))
+        });
+        if let Some(gpu) = &mut self.gpu {
+            gpu.set_material(s.rho_d, s.f0, table.as_ref())?;
+        }
+        let table_image = table.as_ref().map(|t| {
+            let n = t.resolution() as u32;
+            let mut img = Image::new(n, n);
+            for (k, texel) in t.texels().iter().enumerate() {
+                img.set(k as u32 % n, k as u32 / n, *texel);
+            }
+            img
+        });
+        self.shown = Some((s.rho_d, s.f0, table));
+        timings.table_secs = table_start.elapsed().as_secs_f64();
+        self.material = Some(material.clone());
+        Ok(FitResult { material, timings, table_image })
+    }
+
+    /// Writes every export format of the last material into `dir` (the scene's mesh in glTF and USD).
+    pub fn export(&self, dir: &Path, name: &str) -> Result<Vec<PathBuf>, AppError> {
+        let material = self.material.as_ref().ok_or(AppError::NotReady("nothing is fitted yet"))?;
+        let mut provenance = std::collections::BTreeMap::new();
+        provenance.insert("tool".into(), format!("glint {} app", env!("CARGO_PKG_VERSION")));
+        provenance.insert("scene_file".into(), self.scene.source.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
+        provenance.insert("env_file".into(), self.env_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
+        provenance.insert("fit_residual_rms".into(), format!("{:?}", material.fit.residual_rms));
+        let desc = crate::export::material_desc(material, name, crate::export::EXPORT_TABLE_RESOLUTION, provenance).map_err(|e| AppError::Stage(e.to_string()))?;
+        let mesh = crate::export::scene_mesh(&self.scene.mesh, self.tangents.as_deref());
+        std::fs::create_dir_all(dir).map_err(|e| AppError::Io { path: dir.to_path_buf(), reason: e.to_string() })?;
+        glint_exporters::export_all(&desc, Some(&mesh), dir, &[]).map_err(|e| AppError::Stage(e.to_string()))
+    }
+}

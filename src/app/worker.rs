@@ -1,0 +1,309 @@
+//! The worker thread that keeps the UI responsive: it loads the inputs, bakes (on a thread of its
+//! own, the first view's vertices first), fits, renders preview frames and exports, and reports back
+//! as [`Event`]s.
+//!
+//! Inputs: [`Command`]s from the UI. Outputs: [`Event`]s, each followed by the `wake` callback (the UI
+//! asks egui for a repaint there). Invariants: the UI thread never waits on this thread; of several
+//! queued frame requests only the newest is rendered; a fit of a view whose vertices are not baked
+//! yet waits for the whole bake (it would see black, unbaked vertices otherwise); every failure is an
+//! [`Event::Error`] line, never a panic of the UI.
+
+use super::AppError;
+use super::engine::{Engine, FitResult};
+use super::state::Document;
+use crate::bake::{BakeSettings, Baker, Cuts, VertexCut};
+use crate::fit::strokes::ViewSpec;
+use crate::render::Image;
+use crate::scene::Scene;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Instant;
+
+/// What the UI asks for.
+#[derive(Debug, Clone)]
+pub enum Command {
+    /// A preview frame of a view.
+    Render { view: ViewSpec, size: [u32; 2], rotation_deg: f64 },
+    /// Fit the document and show the result in `view`; `id` comes back in [`Event::Fitted`].
+    Fit { id: u64, doc: Box<Document>, view: ViewSpec, size: [u32; 2] },
+    /// Load another environment map.
+    SetEnv(PathBuf),
+    /// Export the last material into a folder.
+    Export { dir: PathBuf, name: String },
+    /// Stop the thread.
+    Quit,
+}
+
+/// What the worker reports.
+#[derive(Debug, Clone)]
+pub enum Event {
+    /// The inputs are loaded: the first view (the scene's first camera) and its orbit parameters.
+    Loaded { view: ViewSpec, size: [u32; 2], orbit: [f32; 3], vertices: usize, triangles: usize, device: String, anisotropic: bool },
+    /// Bake progress (vertices done of the total) and which phase.
+    Progress { done: usize, total: usize, phase: &'static str },
+    /// The first view's vertices are baked: painting and fitting work from now on.
+    FirstViewReady { secs_since_start: f64, vertices: usize },
+    /// The first view's transfer and the default lobes' energy rows are ready: a stroke's fit there is
+    /// only a solve from now on.
+    FitPrepared { secs_since_start: f64, prepare_secs: f64 },
+    /// Every vertex is baked.
+    BakeComplete { bake_secs: f64 },
+    /// A preview frame.
+    Frame { view: ViewSpec, image: Arc<Image> },
+    /// A fit and the frame that shows it.
+    Fitted { id: u64, result: Box<FitResult>, image: Arc<Image>, view: ViewSpec },
+    /// Files written by an export.
+    Exported(Vec<PathBuf>),
+    /// The environment changed (its path).
+    EnvChanged(PathBuf),
+    /// Something went wrong (one line).
+    Error(String),
+}
+
+enum Msg {
+    Cmd(Command),
+    Cuts { cuts: Cuts, complete: bool, bake_secs: f64 },
+    Progress { done: usize, total: usize, phase: &'static str },
+}
+
+/// The handle the UI holds.
+pub struct Worker {
+    tx: Sender<Msg>,
+    rx: Receiver<Event>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts loading `scene` under `env` and baking; `wake` is called after every event.
+    pub fn start(scene: PathBuf, env: PathBuf, wake: Arc<dyn Fn() + Send + Sync>) -> Self {
+        let (tx, rx_msg) = channel::<Msg>();
+        let (tx_event, rx) = channel::<Event>();
+        let bake_tx = tx.clone();
+        let thread = std::thread::Builder::new()
+            .name("glint worker".into())
+            .spawn(move || {
+                let send = |e: Event| {
+                    let _ = tx_event.send(e);
+                    wake();
+                };
+                if let Err(e) = run(&scene, &env, &rx_msg, bake_tx, &send) {
+                    send(Event::Error(e.to_string()));
+                }
+            })
+            .ok();
+        Self { tx, rx, thread }
+    }
+
+    /// Queues a command (ignored once the worker has stopped).
+    pub fn send(&self, command: Command) {
+        let _ = self.tx.send(Msg::Cmd(command));
+    }
+
+    /// Events so far, without waiting.
+    pub fn poll(&self) -> Vec<Event> {
+        self.rx.try_iter().collect()
+    }
+
+    /// Waits up to `timeout` for the next event.
+    pub fn wait(&self, timeout: std::time::Duration) -> Option<Event> {
+        self.rx.recv_timeout(timeout).ok()
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        let _ = self.tx.send(Msg::Cmd(Command::Quit));
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The orbit (azimuth°, elevation°, distance in bounding radii) that reproduces a camera's eye.
+fn orbit_of(scene: &Scene, camera: &crate::scene::Camera) -> [f32; 3] {
+    let r = scene.bounds.radius().max(1e-12);
+    let d = camera.eye() - scene.bounds.centre();
+    let len = d.length().max(1e-12);
+    [d.x.atan2(d.z).to_degrees(), (d.y / len).clamp(-1.0, 1.0).asin().to_degrees(), len / r]
+}
+
+fn run(scene_path: &std::path::Path, env_path: &std::path::Path, rx: &Receiver<Msg>, bake_tx: Sender<Msg>, send: &dyn Fn(Event)) -> Result<(), AppError> {
+    let start = Instant::now();
+    let scene = Arc::new(crate::scene::import(scene_path).map_err(|e| AppError::Stage(format!("{}: {e}", scene_path.display())))?);
+    let env = crate::env::load(env_path).map_err(|e| AppError::Stage(format!("{}: {e}", env_path.display())))?;
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).map_err(|e| AppError::Stage(e.to_string()))?;
+    let decisions = baker.decisions.clone();
+    let first_camera = scene.cameras.first().cloned().unwrap_or_else(|| crate::scene::default_camera(&scene.bounds));
+    let size = [first_camera.width.max(1), first_camera.height.max(1)];
+    let first_view = ViewSpec::Index(0);
+    let mut engine = Engine::new(scene.clone(), env.clone(), env_path.to_path_buf(), baker.tangents.clone(), decisions.anisotropic, decisions.resolution)?;
+    send(Event::Loaded {
+        view: first_view.clone(),
+        size,
+        orbit: orbit_of(&scene, &first_camera),
+        vertices: scene.mesh.positions.len(),
+        triangles: scene.mesh.triangles.len(),
+        device: engine.device(),
+        anisotropic: decisions.anisotropic,
+    });
+    // First fit fast: the vertices the first view sees (at its size and at the fit size), then the rest.
+    let camera = engine.camera(&first_view, size)?;
+    let mut first = crate::raster::visible_vertices(&scene.mesh, &camera, size[0], size[1]);
+    first.extend(crate::raster::visible_vertices(&scene.mesh, &camera, (size[0] / 4).max(1), (size[1] / 4).max(1)));
+    first.sort_unstable();
+    first.dedup();
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let (baker, first, cancel) = (&baker, &first, &cancel);
+        std::thread::Builder::new()
+            .name("glint bake".into())
+            .spawn_scoped(scope, move || bake_phases(baker, first, &bake_tx, start, cancel))
+            .map_err(|e| AppError::Stage(format!("cannot start the bake thread: {e}")))?;
+        let result = serve(&mut engine, rx, send, &first_view, &first_camera.name, size, first.len(), start);
+        cancel.store(true, std::sync::atomic::Ordering::Relaxed);
+        result
+    })
+}
+
+/// The worker's loop over commands and bake results.
+fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_view: &ViewSpec, first_name: &str, first_size: [u32; 2], first_count: usize, start: Instant) -> Result<(), AppError> {
+    let is_first = |v: &ViewSpec| v == first_view || *v == ViewSpec::Name(first_name.into());
+    let mut complete = false;
+    let mut first_ready = false;
+    let mut waiting_fit: Option<Command> = None;
+    // After the first view's cuts, while idle: its transfer and the energy rows, so that the first
+    // stroke's fit is only a solve.
+    let mut prepare: Option<Document> = None;
+    loop {
+        let msg = match prepare.take() {
+            Some(doc) => match rx.recv_timeout(std::time::Duration::from_millis(30)) {
+                Ok(m) => {
+                    prepare = Some(doc);
+                    m
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    match engine.prepare(&doc, first_view, first_size) {
+                        Ok(secs) => send(Event::FitPrepared { secs_since_start: start.elapsed().as_secs_f64(), prepare_secs: secs }),
+                        Err(e) => send(Event::Error(e.to_string())),
+                    }
+                    continue;
+                }
+                Err(_) => return Ok(()),
+            },
+            None => match rx.recv() {
+                Ok(m) => m,
+                Err(_) => return Ok(()),
+            },
+        };
+        let mut batch = vec![msg];
+        batch.extend(rx.try_iter());
+        // Of the frame requests in this batch only the newest matters.
+        let last_render = batch.iter().rposition(|m| matches!(m, Msg::Cmd(Command::Render { .. })));
+        for (i, msg) in batch.into_iter().enumerate() {
+            match msg {
+                Msg::Cmd(Command::Quit) => return Ok(()),
+                Msg::Cmd(Command::Render { .. }) if Some(i) != last_render => {}
+                Msg::Cmd(Command::Render { view, size, rotation_deg }) => {
+                    if first_ready {
+                        match engine.render(&view, size, rotation_deg) {
+                            Ok(image) => send(Event::Frame { view, image: Arc::new(image) }),
+                            Err(e) => send(Event::Error(e.to_string())),
+                        }
+                    }
+                }
+                Msg::Cmd(cmd @ Command::Fit { .. }) => {
+                    let Command::Fit { doc, .. } = &cmd else { unreachable!() };
+                    let needs_all = doc.views.iter().any(|v| !is_first(&v.view));
+                    if !first_ready || (needs_all && !complete) {
+                        send(Event::Error("the fit waits for the bake of this view's vertices (see the progress bar)".into()));
+                        waiting_fit = Some(cmd);
+                    } else {
+                        fit(engine, cmd, send);
+                    }
+                }
+                Msg::Cmd(Command::SetEnv(path)) => match engine.set_env(&path) {
+                    Ok(()) => send(Event::EnvChanged(path)),
+                    Err(e) => send(Event::Error(e.to_string())),
+                },
+                Msg::Cmd(Command::Export { dir, name }) => match engine.export(&dir, &name) {
+                    Ok(files) => send(Event::Exported(files)),
+                    Err(e) => send(Event::Error(e.to_string())),
+                },
+                Msg::Cuts { cuts, complete: all, bake_secs } => {
+                    if let Err(e) = engine.set_cuts(cuts) {
+                        send(Event::Error(e.to_string()));
+                        continue;
+                    }
+                    if !first_ready {
+                        first_ready = true;
+                        send(Event::FirstViewReady { secs_since_start: start.elapsed().as_secs_f64(), vertices: first_count });
+                        prepare = Some(Document::default());
+                    }
+                    if all {
+                        complete = true;
+                        send(Event::BakeComplete { bake_secs });
+                    }
+                    let ready = |c: &Command| match c {
+                        Command::Fit { doc, .. } => complete || doc.views.iter().all(|v| is_first(&v.view)),
+                        _ => true,
+                    };
+                    if waiting_fit.as_ref().is_some_and(ready)
+                        && let Some(cmd) = waiting_fit.take()
+                    {
+                        fit(engine, cmd, send);
+                    }
+                }
+                Msg::Progress { done, total, phase } => send(Event::Progress { done, total, phase }),
+            }
+        }
+    }
+}
+
+fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
+    let Command::Fit { id, doc, view, size } = cmd else { return };
+    let result = engine.fit(&doc).and_then(|mut r| {
+        let t = Instant::now();
+        let image = engine.render(&view, size, doc.settings.env_rotation_deg)?;
+        r.timings.render_secs = t.elapsed().as_secs_f64();
+        Ok((r, image))
+    });
+    match result {
+        Ok((r, image)) => send(Event::Fitted { id, result: Box::new(r), image: Arc::new(image), view }),
+        Err(e) => send(Event::Error(e.to_string())),
+    }
+}
+
+/// Bakes `first` then the remaining vertices (in chunks, so that `cancel` and progress are seen),
+/// sending cuts after each phase.
+fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, cancel: &std::sync::atomic::AtomicBool) {
+    let n = baker.scene().mesh.positions.len();
+    let mut per_vertex = vec![VertexCut::default(); n];
+    let mut is_first = vec![false; n];
+    for &v in first {
+        if let Some(f) = is_first.get_mut(v as usize) {
+            *f = true;
+        }
+    }
+    let rest: Vec<u32> = (0..n as u32).filter(|&v| !is_first[v as usize]).collect();
+    let mut done = 0;
+    for (phase, vertices, complete) in [("first view", first, false), ("all vertices", rest.as_slice(), true)] {
+        for chunk in vertices.chunks(4096) {
+            if cancel.load(std::sync::atomic::Ordering::Relaxed) {
+                return;
+            }
+            let cuts = baker.bake_vertices(chunk, &|k| {
+                let _ = tx.send(Msg::Progress { done: done + k, total: n, phase });
+            });
+            for (&v, cut) in chunk.iter().zip(cuts) {
+                if let Some(slot) = per_vertex.get_mut(v as usize) {
+                    *slot = cut;
+                }
+            }
+            done += chunk.len();
+        }
+        if tx.send(Msg::Cuts { cuts: Cuts::from_vertex_cuts(&per_vertex), complete, bake_secs: start.elapsed().as_secs_f64() }).is_err() {
+            return;
+        }
+    }
+}
