@@ -8,12 +8,14 @@
 //! Stages are free functions over plain data; IO lives only in the importers and at the CLI edge.
 //! See `ARCHITECTURE.md` for the code map and the invariants.
 
+#[cfg(feature = "gui")]
 pub mod app;
 pub mod bake;
 pub mod brdf;
 pub mod env;
 pub mod export;
 pub mod fit;
+#[cfg(feature = "gui")]
 pub mod gpu;
 pub mod inspect;
 pub mod light;

@@ -68,7 +68,7 @@ proptest! {
     }
 }
 
-/// Gauss–Legendre points in the cap's radius and trapezoid points in its azimuth.
+/// Gauss–Legendre points in the cap's radius; trapezoid points in its azimuth (Gauss–Legendre on an arc).
 const RADIAL: usize = 16;
 const AZIMUTH: usize = 32;
 
@@ -91,20 +91,39 @@ fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLege
     let alpha = if cos_alpha <= -1.0 { PI } else { cos_alpha.acos() };
     let radius = (2.0 * alpha).min(PI);
     let (u, v) = centre.any_orthonormal_pair();
+    // A ring of the cap at angle t from the centre (elevation e above the horizon) lies wholly above the
+    // horizon while t < e, partly for e ≤ t < π − e. The radial rule is split there, and a partial ring
+    // is integrated over its visible arc only: the integrand is smooth on each piece (integrating the
+    // cut-off circle with the trapezoid rule gave errors of ±5 % for broad lobes at grazing wo).
+    // (With the centre below the horizon, e < 0: wholly below while t < −e, partly up to π + e, wholly
+    // above beyond.)
+    let elevation = centre.z.clamp(-1.0, 1.0).asin().abs();
+    let breaks = [0.0, elevation.min(radius), (PI - elevation).min(radius), radius];
+    let arc_rule = GaussLegendre::new(2 * AZIMUTH);
     let mut sum = 0.0;
-    for (t, wt) in rule.on_interval(0.0, radius) {
-        let (st, ct) = t.sin_cos();
-        let mut ring = 0.0;
-        for k in 0..AZIMUTH {
-            let phi = 2.0 * PI * (k as f64 + 0.5) / AZIMUTH as f64;
-            let wi = ct * centre + st * (phi.cos() * u + phi.sin() * v);
-            if wi.z <= 0.0 {
-                continue;
-            }
-            let Some(h) = (wi + wo).try_normalize() else { continue };
-            ring += brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * wi.z;
+    for panel in breaks.windows(2).filter(|p| p[1] > p[0]) {
+        for (t, wt) in rule.on_interval(panel[0], panel[1]) {
+            let (st, ct) = t.sin_cos();
+            let f = |phi: f64| {
+                let wi = ct * centre + st * (phi.cos() * u + phi.sin() * v);
+                if wi.z <= 0.0 {
+                    return 0.0;
+                }
+                let Some(h) = (wi + wo).try_normalize() else { return 0.0 };
+                brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * wi.z
+            };
+            // wi.z(φ) = ct·c.z + st·(u.z cos φ + v.z sin φ) = a + r cos(φ − φ0).
+            let (a, r, phi0) = (ct * centre.z, st * u.z.hypot(v.z), v.z.atan2(u.z));
+            let ring = if a - r >= 0.0 {
+                (0..AZIMUTH).map(|k| f(2.0 * PI * (k as f64 + 0.5) / AZIMUTH as f64)).sum::<f64>() * 2.0 * PI / AZIMUTH as f64
+            } else if a + r <= 0.0 {
+                0.0
+            } else {
+                let half = (-a / r).clamp(-1.0, 1.0).acos();
+                arc_rule.integrate(phi0 - half, phi0 + half, f)
+            };
+            sum += wt * st * ring;
         }
-        sum += wt * st * ring * 2.0 * PI / AZIMUTH as f64;
     }
     sum
 }
@@ -128,13 +147,21 @@ fn lobe_albedo_hemisphere(brdf: &DistributionBrdf, j: usize, wo: DVec3) -> f64 {
 #[test]
 fn cap_quadrature_matches_a_full_hemisphere_grid() {
     let rule = GaussLegendre::new(RADIAL);
-    for (lambda, j) in [(1.0, 0), (10.0, 3), (40.0, 7), (300.0, 1)] {
+    for (lambda, j) in [(1.0, 0), (3.5, 5), (10.0, 3), (40.0, 7), (300.0, 1)] {
         let lobes = LobeSet::new(LobeLayout::Hemicube { n: 2 }, lambda).unwrap();
         let brdf = DistributionBrdf { coefficients: vec![1.0; lobes.len()], lobes, f0: 0.3, rho_d: 0.0 };
-        for wo in [DVec3::Z, DVec3::new(0.6, 0.2, 0.5).normalize(), DVec3::new(-0.9, 0.3, 0.05).normalize()] {
+        for wo in [DVec3::Z, DVec3::new(0.6, 0.2, 0.5).normalize(), DVec3::new(-0.9, 0.3, 0.05).normalize(), DVec3::new(0.9123, 0.4095, 3e-3).normalize(), DVec3::new(0.9123, 0.4095, 1e-6).normalize()] {
             let cap = lobe_albedo_wi(&brdf, j, wo, &rule);
             let full = lobe_albedo_hemisphere(&brdf, j, wo);
-            assert!((cap - full).abs() <= 2e-3 * full.max(1e-3), "λ={lambda} j={j} wo={wo}: cap {cap} vs grid {full}");
+            // Grazing wo (z ≤ 3e-3): s varies on the scale wo.z near the horizon, which both rules resolve only
+            // to a few 1e-3 (λ = 10 at z = 3e-3: 2.8e-3 apart; the cap rule moves by 2e-5 from 32 to 128 arc
+            // points). At λ = 40 they are 7.6e-3 apart and it is not settled which is closer, so grazing
+            // directions are checked for λ ≤ 10 only. The albedo property below has 1e-2 of margin.
+            if wo.z < 0.01 && lambda > 10.0 {
+                continue;
+            }
+            let tolerance = if wo.z < 0.01 { 5e-3 } else { 2e-3 };
+            assert!((cap - full).abs() <= tolerance * full.max(1e-3), "λ={lambda} j={j} wo={wo}: cap {cap} vs grid {full}");
         }
     }
 }
@@ -204,4 +231,5 @@ proptest! {
         prop_assert!(worst.0 <= 1.01, "{layout:?} λ={lambda:.2} F0={f0:.3} ρd={rho_d:.3}: albedo {:.4} at wo={} ({} active lobes)", worst.0, worst.1, active.len());
     }
 }
+
 
