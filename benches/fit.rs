@@ -3,7 +3,7 @@
 //! Problems: the real transfer of the bunny under courtyard (default view, isotropic J = 24) at the fit
 //! resolution 160×120 and at full resolution 640×480; and transfers of the same size with J = 147 and
 //! J = 300 lobes (the paper's anisotropic count and a finer one), built from a UV sphere with a tangent
-//! field so that anisotropic lobes apply. 192 energy rows (anisotropic) / 32 (isotropic).
+//! field so that anisotropic lobes apply. 256 energy rows (anisotropic) / 33 (isotropic).
 
 use glint::bake::{BakeSettings, Baker};
 use glint::fit::problem::{ViewData, normal_equations, solve_rgb};
@@ -82,8 +82,10 @@ fn main() {
     // A tangent-carrying sphere (1.6 K pixels at 160x120 with the default camera ~ the paper's N).
     let sphere = sphere_scene();
     for layout in [LobeLayout::PAPER, LobeLayout::Fibonacci { count: 300 }] {
-        let (t, l) = transfer_for(&sphere, &env, layout, (200, 150));
-        bench(&format!("sphere 200x150, {}", layout.name()), &t, &l);
+        for size in [(160, 120), (200, 150)] {
+            let (t, l) = transfer_for(&sphere, &env, layout, size);
+            bench(&format!("sphere {}x{}, {}", size.0, size.1, layout.name()), &t, &l);
+        }
     }
 }
 

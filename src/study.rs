@@ -186,12 +186,12 @@ fn settings(quick: bool, anisotropic: bool, decided_resolution: usize) -> Vec<(S
     }
     // The paper: J = 147 (its hemicube needs a tangent field; a scene without one gets 147 rings),
     // σ = π/40, fit at 160×120. The paper's N_l = 192 energy rows are always in glint's set, which adds
-    // 64 near-horizon rows (256 in all; method.md §9, tests/properties.rs).
+    // 64 near-horizon rows and the normal (257 in all; method.md §9, tests/properties.rs).
     if quick {
         return rows;
     }
     let paper_layout = if anisotropic { LobeLayout::PAPER } else { LobeLayout::Isotropic { count: 147 } };
-    let label = format!("J 147 ({}), σ π/40, fit 160x120, N_l 192+64", paper_layout.name());
+    let label = format!("J 147 ({}), σ π/40, fit 160x120, N_l 192+1+64", paper_layout.name());
     push("paper", label, Knobs { layout: Some(paper_layout), sigma: srbf::PAPER_SIGMA, fit_size: Some((160, 120)), ..d });
     rows
 }
@@ -243,20 +243,22 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
         let (fitted, transfer_secs, fit_secs) = fits[&fit_key].clone();
         let light = LightSums::new(env, &b.set, &b.tree, 0.0);
         let residual = fitted.fit.residual_rms.iter().sum::<f64>() / 3.0;
-        if baseline.is_none() {
-            baseline = Some(fitted.clone());
-        }
-        let material = if k.changes_material() { &fitted } else { baseline.as_ref().expect("set on the first row") };
+        let first = baseline.get_or_insert_with(|| fitted.clone());
+        let material = if k.changes_material() { &fitted } else { &*first };
         let mlobes = material.lobes()?;
         let coefficients = coefficient_slices(material);
         // The truth of this material (cached by its coefficients' bits).
         let key: Vec<u64> = material.coefficients.iter().flatten().chain(material.rho_d.iter()).map(|x| x.to_bits()).collect();
-        if !truths.iter().any(|(k2, _)| *k2 == key) {
-            let exact = ExactMaterial { lobes: &mlobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
-            let truth = render_reference(&scene.mesh, b.tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, truth_spp, 1);
-            truths.push((key.clone(), truth));
-        }
-        let truth = &truths.iter().find(|(k2, _)| *k2 == key).expect("inserted above").1;
+        let index = match truths.iter().position(|(k2, _)| *k2 == key) {
+            Some(i) => i,
+            None => {
+                let exact = ExactMaterial { lobes: &mlobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
+                let truth = render_reference(&scene.mesh, b.tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, truth_spp, 1);
+                truths.push((key.clone(), truth));
+                truths.len() - 1
+            }
+        };
+        let truth = &truths[index].1;
         let (frame_secs, rel_rmse) = match k.truth_spp {
             Some(spp) => {
                 let exact = ExactMaterial { lobes: &mlobes, coefficients, rho_d: material.rho_d, f0: material.f0 };

@@ -17,7 +17,7 @@ use crate::bake::Cuts;
 use crate::brdf::EnergyTable;
 use crate::env::EnvMap;
 use crate::fit::material::{FitStats, Material};
-use crate::fit::problem::{ChannelSystem, ViewData, normal_equations};
+use crate::fit::problem::{ViewData, solve_rgb_from};
 use crate::fit::qp::Constraint;
 use crate::fit::run::camera_for;
 use crate::fit::strokes::{ViewSpec, targets};
@@ -282,12 +282,7 @@ impl Engine {
             [zero.clone(), zero.clone(), zero.clone()]
         } else {
             let energy = if s.energy_limit { lobes.energy.as_ref().map(|e| (e, s.f0)) } else { None };
-            let mut fits = Vec::with_capacity(3);
-            for c in 0..3 {
-                let system = ChannelSystem::new(normal_equations(&data, c, s.rho_d[c]), energy, s.rho_d[c]).map_err(|e| AppError::Stage(e.to_string()))?;
-                let warm = self.warm.as_ref().map(|w| w[c].as_slice());
-                fits.push(system.solve(warm).map_err(|e| AppError::Stage(e.to_string()))?);
-            }
+            let fits = solve_rgb_from(&data, energy, s.rho_d, self.warm.as_ref()).map_err(|e| AppError::Stage(e.to_string()))?;
             stats.residual_rms = std::array::from_fn(|c| fits[c].residual_rms);
             stats.active_energy_rows = std::array::from_fn(|c| fits[c].active_energy_rows);
             stats.active_constraints = std::array::from_fn(|c| fits[c].active.len());
