@@ -7,8 +7,9 @@
 //! timings, exported files.
 //! Invariants: calls only the library's public stage functions (transfer, strokes, the per-channel
 //! QP, tabulation, the GPU preview, the exporters); a view's transfer is computed once per (view,
-//! rotation, σ, J, F0) and kept; each channel's solve is warm-started from the previous fit's active
-//! set (the solver is exact from any start, so only the time changes); the strokes paint over the
+//! rotation, σ, J, F0) and kept; the three channels are solved in parallel by
+//! `fit::problem::solve_rgb_from`, each warm-started from the previous fit's active set (on the first
+//! fit, green and blue from red's; the solver is exact from any start, so only the time changes); the strokes paint over the
 //! diffuse rendering (c = 0) exactly as `glint fit` does, so the same strokes give the same material.
 
 use super::AppError;
@@ -251,7 +252,8 @@ impl Engine {
         for v in &views {
             cameras.push(self.ensure_transfer(doc, &v.view, v.image_size)?);
         }
-        let lobes = self.lobes.as_mut().expect("ensured above");
+        // Set by ensure_lobes above; an error rather than a panic should that ever change.
+        let lobes = self.lobes.as_mut().ok_or(AppError::NotReady("the lobes come before a fit"))?;
         let j = lobes.lobes.len();
         if s.energy_limit && lobes.energy.is_none() {
             lobes.energy = Some(EnergyTable::with_defaults(&lobes.lobes));

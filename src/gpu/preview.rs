@@ -370,7 +370,8 @@ impl GpuPreview {
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Wgpu { reason: e.to_string() });
         }
-        Ok(&self.target.as_ref().expect("ensured by submit_frame").color)
+        // submit_frame made the target; an error rather than a panic should that ever change.
+        Ok(&self.target.as_ref().ok_or(GpuError::NotReady { what: "render target", call: "submit_frame" })?.color)
     }
 
     fn submit_frame(&mut self, camera: &Camera, width: u32, height: u32, copy_out: bool) -> Result<(), GpuError> {
@@ -379,7 +380,8 @@ impl GpuPreview {
         self.encode_shade(&mut encoder, camera.eye())?;
         let raster = RasterUniforms { clip_from_world: camera.clip_from_world().to_cols_array_2d() };
         self.ctx.queue.write_buffer(&self.raster_uniforms, 0, bytemuck::bytes_of(&raster));
-        let target = self.target.as_ref().expect("ensured above");
+        // ensure_target made it just above.
+        let target = self.target.as_ref().ok_or(GpuError::NotReady { what: "render target", call: "submit_frame" })?;
         let color_view = target.color.create_view(&Default::default());
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -422,7 +424,8 @@ impl GpuPreview {
     pub fn render(&mut self, camera: &Camera, width: u32, height: u32) -> Result<Image, GpuError> {
         let scope = self.ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.submit_frame(camera, width, height, true)?;
-        let target = self.target.as_ref().expect("ensured by submit_frame");
+        // submit_frame made the target.
+        let target = self.target.as_ref().ok_or(GpuError::NotReady { what: "render target", call: "submit_frame" })?;
         let bytes = read_buffer(&self.ctx, &target.readback)?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Wgpu { reason: e.to_string() });
