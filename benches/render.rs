@@ -46,8 +46,10 @@ fn main() {
         let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
         let bake = baker.bake_all(None, &|_| {});
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
-        for (label, max_edge_px) in [("vertices", 0.0), ("1-px triangles", 1.0)] {
-            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, ..PrtSettings::default() });
+        let default_deg = PrtSettings::default().partition_deg;
+        for (label, max_edge_px, partition_deg) in [("vertices", 0.0, default_deg), ("vertices", 0.0, 16.0), ("1-px triangles", 1.0, default_deg)] {
+            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, partition_deg, ..PrtSettings::default() });
+            let label = format!("{label}, {partition_deg}° partition");
             for (w, h) in [(160, 120), (640, 480)] {
                 let mut camera = scene.cameras[0].clone();
                 camera.aspect = w as f32 / h as f32;
@@ -57,6 +59,7 @@ fn main() {
                 println!("| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |", scene.mesh.positions.len(), sm.subdivision, sm.points.len(), 1.0 / secs);
             }
         }
+        #[cfg(feature = "gui")]
         match glint::gpu::GpuContext::headless() {
             Ok(ctx) => {
                 let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
@@ -73,6 +76,8 @@ fn main() {
             }
             Err(e) => gpu_rows.push(format!("| {mesh} | no adapter: {e} | | | | |")),
         }
+        #[cfg(not(feature = "gui"))]
+        gpu_rows.push(format!("| {mesh} | built without the gui feature | | | | |"));
     }
     println!();
     println!("| scene | vertices | size | wgpu adapter | frame (s) | fps | light upload (ms) |");

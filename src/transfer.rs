@@ -13,8 +13,9 @@
 //! direction per node is accurate) are merged into elementary runs of consecutive leaves (cut nodes are leaf ranges in
 //! tree order). For each run the prefix sums give its power Σ Ω L, solid angle and moment Σ Ω d in
 //! O(1); V is the barycentric blend of the three vertices' V_k; Ṽ uses the pixel's interpolated normal,
-//! with the run's mean cosine exact (moment·n / Ω) when it lies above the horizon and summed leaf by leaf
-//! when it straddles it. The BRDF is evaluated at the run's mean direction; only lobes whose support
+//! with the run's mean cosine exact (moment·n / Ω) when it lies above the horizon, and where it straddles
+//! it split by a walk down the tree into sub-ranges above (exact) and the leaves the horizon cuts
+//! (clipped by a linear rule, [`LightTree::split_by_horizon`]). The BRDF is evaluated at the run's mean direction; only lobes whose support
 //! (G > e^-14) can reach the half-vector are evaluated ([`LobeGrid`]).
 //!
 //! Invariants: no ray tracing (visibility comes from the bake; a new view or rotation only re-sums);
@@ -25,7 +26,7 @@ use crate::brdf::dbrdf::static_term;
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::scene::{Camera, Mesh};
-use crate::sphere::light_tree::{Partition, PartitionCone};
+use crate::sphere::light_tree::Partition;
 use crate::sphere::{Frame, LightTree, LobeSet, hemi_oct, srbf};
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
@@ -143,9 +144,8 @@ pub struct TransferContext<'a> {
     grid: LobeGrid,
     /// Leaf ranges [first, end) of the shading partition, in order.
     shading: Vec<(u32, u32)>,
-    /// Per shading node: a cone holding every leaf corner, to tell runs wholly above a horizon without
-    /// looking at their leaves.
-    shading_cones: Vec<PartitionCone>,
+    /// Per shading node, its light-tree node (where the walk that splits a run at the horizon starts).
+    shading_nodes: Vec<u32>,
 }
 
 impl<'a> TransferContext<'a> {
@@ -156,8 +156,8 @@ impl<'a> TransferContext<'a> {
     pub fn new(mesh: &'a Mesh, cuts: &'a Cuts, tree: &'a LightTree, lobes: &'a LobeSet, tangents: Option<&'a [Vec4]>, shading_angle: Option<f64>) -> Self {
         let sigma = srbf::sigma_from_lambda(lobes.lambda()).unwrap_or(0.08);
         let target = shading_angle.unwrap_or(0.25 * sigma).max(1e-6);
-        let Partition { ranges: shading, cones: shading_cones } = tree.partition(target);
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_cones }
+        let Partition { ranges: shading, nodes: shading_nodes, .. } = tree.partition(target);
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_nodes }
     }
 
     /// Number of nodes in the shading partition (over the whole sphere).
@@ -228,16 +228,17 @@ impl<'a> TransferContext<'a> {
             let omega = light.omega(a, z);
             let moment = light.moment(a, z);
             let Some(dir) = moment.try_normalize() else { return };
-            // Σ Ω max(d·n, 0) over the run: exact from the moment when the whole run is above the
-            // horizon, else leaf by leaf.
-            // A run wholly above the horizon: its exact moment gives the cosine integral. Otherwise each
-            // leaf astride the horizon is clipped to it (exact too). The shading node's corner cone
-            // settles most runs without looking at their leaves.
-            let cos_mass = if self.tree.wholly_above(a, z, normal, &self.shading_cones[si]) {
-                moment.dot(normal)
-            } else {
-                (a..z).map(|i| self.tree.leaf_cosine_integral(i, normal)).sum()
-            };
+            // ∫ max(ω·n, 0) dω over the run, exact: its moment · n when it lies wholly above the
+            // horizon (the shading node's corner cone settles most runs at once), else split by a walk
+            // down the tree into sub-ranges above (their moments) and leaves astride (clipped).
+            let mut cos_mass = 0.0;
+            self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, &mut |lo, hi, clipped| {
+                cos_mass += match clipped {
+                    None if (lo, hi) == (a, z) => moment.dot(normal),
+                    None => light.moment(lo, hi).dot(normal),
+                    Some(c) => c,
+                }
+            });
             if cos_mass <= 0.0 || omega <= 0.0 {
                 return;
             }

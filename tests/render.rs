@@ -158,15 +158,20 @@ fn diagnose() {
             timg.set(p.x, p.y, v.map(|x| x as f32));
         }
         let mut variants = vec![("default".to_string(), PrtSettings::default())];
-        for pd in [1.0, 2.0, 4.0] {
-            for e in [0.0, 1.0, 2.0, 4.0] {
+        let pds: Vec<f64> = std::env::var("PDS").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![1.0, 2.0, 4.0]);
+        let es: Vec<f64> = std::env::var("ES").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
+        for &pd in &pds {
+            for &e in &es {
                 variants.push((format!("p{pd}e{e}"), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e }));
             }
         }
         for (label, settings) in variants {
             let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
-            let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Exact { lobes: &lobes, coefficients: coef } });
-            println!("{name} {label}: PRT vs MC {:.4}, PRT vs transfer {:.4}", img.relative_rmse(&mc).unwrap(), img.relative_rmse(&timg).unwrap());
+            let table = PhTable::build(&lobes, coef, default_resolution(lobes.lambda()));
+            let t0 = std::time::Instant::now();
+            let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+            let secs = t0.elapsed().as_secs_f64();
+            println!("{name} {label}: PRT vs MC {:.4}, PRT vs transfer {:.4}, frame {secs:.3} s, partition nodes {}", img.relative_rmse(&mc).unwrap(), img.relative_rmse(&timg).unwrap(), prt.partition_nodes());
             img.write(&out.join(format!("{mesh}_{name}_{label}.exr")), 1.0).unwrap();
         }
         println!("{name}: transfer vs MC {:.4}, MC noise {:.4}", timg.relative_rmse(&mc).unwrap(), mc2.relative_rmse(&mc).unwrap());
@@ -272,4 +277,49 @@ fn subdivision_study() {
             );
         }
     }
+}
+
+/// Developer tool (not run by CI): renders one frame REPS times for profiling, e.g.
+/// `MESH=bunny PD=4 E=1 REPS=5 cargo test --test render profile_frame -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn profile_frame() {
+    let var = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let mesh = var("MESH", "bunny");
+    let env = var("ENV", "studio_512");
+    let (pd, e, reps): (f64, f64, usize) = (var("PD", "4").parse().unwrap(), var("E", "1").parse().unwrap(), var("REPS", "5").parse().unwrap());
+    let (w, h): (u32, u32) = (var("W", "160").parse().unwrap(), var("H", "120").parse().unwrap());
+    let c = case(&mesh, &env);
+    let lobes = glint::sphere::LobeSet::new(glint::sphere::LobeLayout::Isotropic { count: 24 }, glint::sphere::srbf::lambda_from_sigma(glint::sphere::srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let mut co = vec![0.0; lobes.len()];
+    (co[0], co[3], co[9]) = (0.8, 0.5, 0.3);
+    let coefficients = [co.as_slice(), co.as_slice(), co.as_slice()];
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
+    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e });
+    let mut camera = c.scene.cameras[0].clone();
+    camera.aspect = w as f32 / h as f32;
+    let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
+    if std::env::var("MODE").as_deref() == Ok("transfer") {
+        let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+        let mut best = f64::MAX;
+        let mut n = 0;
+        for _ in 0..reps {
+            let t0 = std::time::Instant::now();
+            n = std::hint::black_box(ctx.compute(&light, &camera, w, h, 0.04)).pixels.len();
+            best = best.min(t0.elapsed().as_secs_f64());
+        }
+        println!("{mesh} {w}x{h} transfer: {n} pixels, {} shading nodes, best {best:.3} s", ctx.shading_nodes());
+        return;
+    }
+    let t0 = std::time::Instant::now();
+    let sm = prt.shading_mesh(&camera, w, h);
+    let t_mesh = t0.elapsed().as_secs_f64();
+    let mut best = f64::MAX;
+    for _ in 0..reps {
+        let t0 = std::time::Instant::now();
+        std::hint::black_box(prt.render(&light, &camera, w, h, &shading));
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    println!("{mesh} {w}x{h} partition {pd}° edge {e}: {} points, subdivision {}, shading mesh {t_mesh:.3} s, frame best {best:.3} s", sm.points.len(), sm.subdivision);
 }

@@ -20,7 +20,7 @@ pub mod preview;
 pub mod uniforms;
 
 pub use context::GpuContext;
-pub use preview::GpuPreview;
+pub use preview::{GpuPreview, MAX_PARTITION_DEG};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, thiserror::Error)]

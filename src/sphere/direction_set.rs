@@ -219,6 +219,44 @@ pub fn clipped_cosine_integral(v: &[DVec3; 4], n: DVec3) -> f64 {
     polygon_moment(&clipped[..count], inside).dot(n).max(0.0)
 }
 
+/// ∫ max(ω·n, 0) dω over a small texel from its corner heights h_k = d_k·n: the texel as the two
+/// triangles (0, 1, 2) and (0, 2, 3), holding `split` and 1 − `split` of its solid angle `omega`, with
+/// ω·n linear on each (the mean of max(·, 0) of a linear function over a triangle is closed form). No
+/// transcendental functions: this is what the renderers evaluate for the ~2π/δ texels of width δ that
+/// every horizon cuts. Its error is second order in the texel's width — measured ≤ 1.5e-3 of
+/// Ω·max_k h_k for 1.4° texels (6×64²), against [`clipped_cosine_integral`], which is exact.
+#[inline]
+pub fn clipped_cosine_linear(h: [f64; 4], omega: f64, split: f64) -> f64 {
+    omega * (split * triangle_mean_positive(h[0], h[1], h[2]) + (1.0 - split) * triangle_mean_positive(h[0], h[2], h[3]))
+}
+
+/// Mean of max(f, 0) over a triangle on which f is linear with vertex values a, b, c.
+#[inline]
+fn triangle_mean_positive(a: f64, b: f64, c: f64) -> f64 {
+    // Sort descending: a ≥ b ≥ c.
+    let (a, b) = if a >= b { (a, b) } else { (b, a) };
+    let (a, b, c) = if b >= c { (a, b, c) } else if a >= c { (a, c, b) } else { (c, a, b) };
+    if c >= 0.0 {
+        (a + b + c) / 3.0
+    } else if a <= 0.0 {
+        0.0
+    } else if b <= 0.0 {
+        // Only a's corner is positive: a sub-triangle of area fraction a²/((a−b)(a−c)) with mean a/3.
+        a * a * a / (3.0 * (a - b) * (a - c))
+    } else {
+        // Only c's corner is negative: the whole mean minus the negative corner's part.
+        (a + b + c) / 3.0 - c * c * c / (3.0 * (c - a) * (c - b))
+    }
+}
+
+/// The fraction of a texel's area in its triangle (0, 1, 2) of the split (0, 1, 2) + (0, 2, 3), from
+/// the planar triangles through its corners.
+pub fn triangle_split(c: &[DVec3; 4]) -> f64 {
+    let a1 = (c[1] - c[0]).cross(c[2] - c[0]).length();
+    let a2 = (c[2] - c[0]).cross(c[3] - c[0]).length();
+    if a1 + a2 > 0.0 { a1 / (a1 + a2) } else { 0.5 }
+}
+
 fn corner_area(x: f64, y: f64) -> f64 {
     (x * y).atan2((x * x + y * y + 1.0).sqrt())
 }
@@ -303,6 +341,45 @@ mod tests {
             let got = clipped_cosine_integral(&set.texel_corners(index), n);
             assert!((got - want).abs() < 2e-5 * set.solid_angles()[index], "{got} vs {want}");
         }
+    }
+
+    #[test]
+    fn linear_clip_is_close_to_the_exact_clip_on_small_texels() {
+        // Every texel of a 6×64² set that a random plane cuts, against the exact polygon clip; the split
+        // is each texel's planar triangle-area fraction (what the light tree stores).
+        let set = DirectionSet::cube(64).unwrap();
+        let mut rng = crate::math::Rng::new(5);
+        let (mut worst, mut cut) = (0.0f64, 0);
+        for _ in 0..20 {
+            let n = rng.unit_vector();
+            for i in 0..set.len() {
+                let c = set.texel_corners(i);
+                let h = c.map(|d| d.dot(n));
+                if h.iter().all(|&x| x >= 0.0) || h.iter().all(|&x| x <= 0.0) {
+                    continue;
+                }
+                cut += 1;
+                let split = triangle_split(&c);
+                let got = clipped_cosine_linear(h, set.solid_angles()[i], split);
+                let want = clipped_cosine_integral(&c, n);
+                let scale = set.solid_angles()[i] * h.iter().copied().fold(0.0, f64::max);
+                worst = worst.max((got - want).abs() / scale);
+            }
+        }
+        println!("{cut} cut texels, worst error {worst:.2e} of Ω·max h");
+        assert!(cut > 5000);
+        assert!(worst < 1.5e-3, "{worst}");
+        // Whole texels above the plane: the linear rule is the mean height, close to moment·n / Ω.
+        assert!((triangle_mean_positive(0.3, 0.2, 0.1) - 0.2).abs() < 1e-15);
+        assert_eq!(triangle_mean_positive(-0.3, -0.2, -0.1), 0.0);
+        // One corner above: a³ / (3 (a − b)(a − c)); symmetric in the order of the corners.
+        let one = 0.1f64.powi(3) / (3.0 * 0.3 * 0.4);
+        for (a, b, c) in [(0.1, -0.2, -0.3), (-0.2, 0.1, -0.3), (-0.3, -0.2, 0.1)] {
+            assert!((triangle_mean_positive(a, b, c) - one).abs() < 1e-15);
+        }
+        // Complement: max(f, 0) − max(−f, 0) = f.
+        let (a, b, c) = (0.4, 0.1, -0.2);
+        assert!((triangle_mean_positive(a, b, c) - triangle_mean_positive(-a, -b, -c) - (a + b + c) / 3.0).abs() < 1e-15);
     }
 
     #[test]

@@ -56,6 +56,11 @@ pub struct LightTree {
     leaf_texel: Vec<u32>,
     leaf_directions: Vec<DVec3>,
     leaf_solid_angles: Vec<f64>,
+    /// Per node: a cone around its mean direction holding every corner of its leaves' texels.
+    corner_cones: Vec<PartitionCone>,
+    /// Per leaf: the solid-angle split of its texel into triangles (0, 1, 2) and (0, 2, 3), for the
+    /// linear horizon clip.
+    leaf_splits: Vec<f64>,
     depth: usize,
 }
 
@@ -70,8 +75,18 @@ impl LightTree {
         let leaf_directions = order.iter().map(|&i| dirs[i as usize]).collect();
         let leaf_solid_angles = order.iter().map(|&i| set.solid_angles()[i as usize]).collect();
         let leaf_moments = order.iter().map(|&i| set.moments()[i as usize]).collect();
-        let leaf_corners = order.iter().map(|&i| set.texel_corners(i as usize)).collect();
-        Self { nodes, leaf_moments, leaf_corners, leaf_texel: order, leaf_directions, leaf_solid_angles, depth }
+        let leaf_corners: Vec<[DVec3; 4]> = order.iter().map(|&i| set.texel_corners(i as usize)).collect();
+        let corner_cones = nodes
+            .iter()
+            .map(|node| {
+                let axis = node.mean_direction;
+                let range = node.first as usize..(node.first + node.count) as usize;
+                let cos = leaf_corners[range].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
+                PartitionCone { axis, cos, sin: (1.0 - cos * cos).max(0.0).sqrt() }
+            })
+            .collect();
+        let leaf_splits = leaf_corners.iter().map(super::direction_set::triangle_split).collect();
+        Self { nodes, leaf_moments, leaf_corners, leaf_texel: order, leaf_directions, leaf_solid_angles, corner_cones, leaf_splits, depth }
     }
 
     /// All nodes, pre-order; index 0 is the root.
@@ -117,50 +132,91 @@ impl LightTree {
     /// The partition of the sphere into the largest nodes whose leaf-centre cone half-angle is at most
     /// `max_half_angle` (radians; leaves always qualify), in leaf order.
     pub fn partition(&self, max_half_angle: f64) -> Partition {
-        let mut ranges = Vec::new();
+        let (mut ranges, mut nodes) = (Vec::new(), Vec::new());
         let mut stack = vec![0usize];
         // Depth-first, left before right: the ranges come out in leaf order.
         while let Some(k) = stack.pop() {
             let node = self.nodes[k];
             if node.is_leaf() || node.cone_cos.clamp(-1.0, 1.0).acos() <= max_half_angle {
                 ranges.push((node.first, node.first + node.count));
+                nodes.push(k as u32);
             } else {
                 stack.push(node.right as usize);
                 stack.push(node.left as usize);
             }
         }
-        let cones = ranges
-            .iter()
-            .map(|&(a, z)| {
-                let axis = self.leaf_moments[a as usize..z as usize].iter().copied().sum::<DVec3>().try_normalize().unwrap_or(DVec3::Z);
-                let cos = self.leaf_corners[a as usize..z as usize].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
-                PartitionCone { axis, cos, sin: (1.0 - cos * cos).max(0.0).sqrt() }
-            })
-            .collect();
-        Partition { ranges, cones }
+        let cones = nodes.iter().map(|&k| self.corner_cones[k as usize]).collect();
+        Partition { ranges, cones, nodes }
     }
 
-    /// True when every leaf of [a, z) lies wholly on the positive side of the plane with normal `n`:
-    /// checked first against `cone` (which bounds every leaf corner of a partition node holding the
-    /// range), then corner by corner.
+    /// The cone around node k's mean direction that holds every corner of its leaves' texels.
     #[inline]
-    pub fn wholly_above(&self, a: usize, z: usize, n: DVec3, cone: &PartitionCone) -> bool {
-        let cb = cone.axis.dot(n);
-        let sb = (1.0 - cb * cb).max(0.0).sqrt();
-        // Every direction of the cone is above the plane when the cone's lowest edge is.
-        (cb * cone.cos - sb * cone.sin > 0.0 && sb * cone.cos + cb * cone.sin > 0.0)
-            || self.leaf_corners[a..z].iter().all(|c| c.iter().all(|d| d.dot(n) >= 0.0))
+    pub fn corner_cone(&self, k: usize) -> &PartitionCone {
+        &self.corner_cones[k]
     }
 
-    /// ∫ max(ω·n, 0) dω over leaf i, exact (the texel moment when the texel is wholly above the plane,
-    /// else the texel clipped to it).
-    #[inline]
-    pub fn leaf_cosine_integral(&self, i: usize, n: DVec3) -> f64 {
-        let corners = &self.leaf_corners[i];
-        if corners.iter().all(|d| d.dot(n) >= 0.0) {
-            self.leaf_moments[i].dot(n)
-        } else {
-            super::direction_set::clipped_cosine_integral(corners, n)
+    /// Splits the leaves [a, z) of node k's subtree against the plane ω·n = 0 by walking down the tree,
+    /// calling `visit(a', z', None)` for each sub-range whose texels lie wholly above the plane (for the
+    /// caller's prefix sums: ∫ max(ω·n, 0) dω over it is its moment · n exactly) and `visit(i, i + 1,
+    /// Some(c))` for each leaf the plane cuts, with c ≈ ∫_leaf max(ω·n, 0) dω by the linear rule
+    /// ([`clipped_cosine_linear`](super::direction_set::clipped_cosine_linear), within ~1e-3 of the
+    /// leaf's Ω·max cos, so ≲ 1e-5 of the irradiance); parts wholly below are skipped. Work is proportional to the leaves the plane cuts (times the depth), not to
+    /// the range's size. [a, z) must lie inside node k.
+    pub fn split_by_horizon(&self, k: usize, a: usize, z: usize, n: DVec3, visit: &mut impl FnMut(usize, usize, Option<f64>)) {
+        // Depth-first with right pushed before left: the stack never holds more than depth + 1 nodes
+        // (a tree with 2^63 leaves would be needed to overflow it).
+        // First down to the smallest node that holds the whole range (no cone tests on the way).
+        let mut k = k;
+        loop {
+            let node = &self.nodes[k];
+            if node.is_leaf() {
+                break;
+            }
+            let left = &self.nodes[node.left as usize];
+            let mid = (left.first + left.count) as usize;
+            if z <= mid {
+                k = node.left as usize;
+            } else if a >= mid {
+                k = node.right as usize;
+            } else {
+                break;
+            }
+        }
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        stack[0] = k as u32;
+        while top > 0 {
+            top -= 1;
+            let k = stack[top] as usize;
+            let node = &self.nodes[k];
+            let (lo, hi) = ((node.first as usize).max(a), ((node.first + node.count) as usize).min(z));
+            if lo >= hi {
+                continue;
+            }
+            let cone = &self.corner_cones[k];
+            // A cone of half-angle β ≤ 90° around a lies wholly above the plane when the angle from a to
+            // n is under 90° − β, i.e. a·n > sin β, and wholly below when a·n < −sin β.
+            let cb = cone.axis.dot(n);
+            if cone.cos > 0.0 && cb > cone.sin {
+                visit(lo, hi, None);
+            } else if cone.cos > 0.0 && cb < -cone.sin {
+                continue;
+            } else if node.is_leaf() {
+                let h = self.leaf_corners[lo].map(|d| d.dot(n));
+                if h.iter().all(|&x| x >= 0.0) {
+                    visit(lo, hi, None);
+                } else {
+                    let c = super::direction_set::clipped_cosine_linear(h, self.leaf_solid_angles[lo], self.leaf_splits[lo]);
+                    if c > 0.0 {
+                        visit(lo, hi, Some(c));
+                    }
+                }
+            } else if top + 2 <= stack.len() {
+                // Right first so the left subtree is visited first (leaf order).
+                stack[top] = node.right;
+                stack[top + 1] = node.left;
+                top += 2;
+            }
         }
     }
 }
@@ -172,6 +228,8 @@ pub struct Partition {
     pub ranges: Vec<(u32, u32)>,
     /// Per range, a cone holding every corner of its leaves.
     pub cones: Vec<PartitionCone>,
+    /// Per range, its light-tree node.
+    pub nodes: Vec<u32>,
 }
 
 /// A cone (axis, cos and sin of the half-angle) bounding a set of directions.
@@ -284,6 +342,52 @@ mod tests {
             let max_depth = (set.len() as f64).log2().ceil() as usize;
             assert!(tree.depth() <= max_depth, "depth {} > {max_depth}", tree.depth());
         }
+    }
+
+    #[test]
+    fn horizon_split_equals_the_leaf_by_leaf_clipped_sum() {
+        // Reference: every leaf of the range on its own, wholly above by its corners (moment · n) or
+        // clipped by the same linear rule (its accuracy is tested in direction_set).
+        use crate::sphere::direction_set::{clipped_cosine_linear, triangle_split};
+        let set = DirectionSet::cube(16).unwrap();
+        let tree = LightTree::build(&set);
+        let mut rng = crate::math::Rng::new(11);
+        let partition = tree.partition(20f64.to_radians());
+        let mut cut_leaves = 0;
+        for trial in 0..300 {
+            let n = rng.unit_vector();
+            // A partition node, or the root, and a random sub-range of it.
+            let k = if trial % 3 == 0 { 0 } else { partition.nodes[(rng.next_u64() % partition.nodes.len() as u64) as usize] as usize };
+            let node = tree.nodes()[k];
+            let (f, e) = (node.first as usize, (node.first + node.count) as usize);
+            let a = f + (rng.next_u64() % node.count as u64) as usize;
+            let z = a + 1 + (rng.next_u64() % (e - a) as u64) as usize;
+            let want: f64 = (a..z)
+                .map(|i| {
+                    let corners = &tree.leaf_corners()[i];
+                    let h = corners.map(|d| d.dot(n));
+                    if h.iter().all(|&x| x >= 0.0) { tree.leaf_moments()[i].dot(n) } else { clipped_cosine_linear(h, tree.leaf_solid_angles()[i], triangle_split(corners)) }
+                })
+                .sum();
+            let (mut got, mut next) = (0.0, a);
+            tree.split_by_horizon(k, a, z, n, &mut |lo, hi, clipped| {
+                assert!(lo >= next && hi > lo && hi <= z, "parts in leaf order, disjoint, inside the range");
+                next = hi;
+                match clipped {
+                    None => {
+                        assert!(tree.leaf_corners()[lo..hi].iter().flatten().all(|d| d.dot(n) >= 0.0));
+                        got += tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum::<f64>();
+                    }
+                    Some(c) => {
+                        assert_eq!(hi, lo + 1);
+                        cut_leaves += 1;
+                        got += c;
+                    }
+                }
+            });
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1e-3), "trial {trial}: {got} vs {want}");
+        }
+        assert!(cut_leaves > 100, "the trials must cut leaves ({cut_leaves})");
     }
 
     #[test]
