@@ -10,13 +10,14 @@
 //!
 //! How a pixel is summed: its triangle's three vertex cuts and the *shading partition* (tree nodes no
 //! wider than about a quarter of the lobe's width in wi-space, so that evaluating the BRDF at one
-//! direction per node is accurate) are merged into elementary runs of consecutive leaves (cut nodes are leaf ranges in
-//! tree order). For each run the prefix sums give its power Σ Ω L, solid angle and moment Σ Ω d in
-//! O(1); V is the barycentric blend of the three vertices' V_k; Ṽ uses the pixel's interpolated normal,
-//! with the run's mean cosine exact (moment·n / Ω) when it lies above the horizon, and where it straddles
-//! it split by a walk down the tree into sub-ranges above (exact) and the leaves the horizon cuts
-//! (clipped by a linear rule, [`LightTree::split_by_horizon`]). The BRDF is evaluated at the run's mean direction; only lobes whose support
-//! (G > e^-14) can reach the half-vector are evaluated ([`LobeGrid`]).
+//! direction per node is accurate) are merged into elementary runs of consecutive leaves (cut nodes are
+//! leaf ranges in tree order). For each run the prefix sums give its power Σ Ω L, solid angle and moment
+//! Σ Ω d in O(1); V is the barycentric blend of the three vertices' V_k; Ṽ uses the pixel's
+//! interpolated normal, with the run's mean cosine exact (moment·n / Ω) when it lies above the horizon,
+//! and where it straddles it split by a walk down the tree into sub-ranges above (exact) and the leaves
+//! the horizon cuts (clipped by a linear rule, [`LightTree::split_by_horizon`]). The BRDF is evaluated
+//! at the run's mean direction; only lobes whose support (G > e^-14) can reach the half-vector are
+//! evaluated ([`LobeGrid`]).
 //!
 //! Invariants: no ray tracing (visibility comes from the bake; a new view or rotation only re-sums);
 //! pixels are independent, so the result does not depend on the thread count; no IO.
@@ -228,9 +229,9 @@ impl<'a> TransferContext<'a> {
             let omega = light.omega(a, z);
             let moment = light.moment(a, z);
             let Some(dir) = moment.try_normalize() else { return };
-            // ∫ max(ω·n, 0) dω over the run, exact: its moment · n when it lies wholly above the
+            // ∫ max(ω·n, 0) dω over the run: its moment · n (exact) when it lies wholly above the
             // horizon (the shading node's corner cone settles most runs at once), else split by a walk
-            // down the tree into sub-ranges above (their moments) and leaves astride (clipped).
+            // down the tree into sub-ranges above (their moments) and leaves astride (linear clip).
             let mut cos_mass = 0.0;
             self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, &mut |lo, hi, clipped| {
                 cos_mass += match clipped {

@@ -23,7 +23,6 @@ use crate::render::{Image, PhTable, PrtSettings};
 use crate::scene::{Camera, Mesh};
 use crate::sphere::LightTree;
 use glam::{Vec3, Vec4};
-use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 const SHADE_WGSL: &str = include_str!("../../shaders/prt_shade.wgsl");
@@ -109,15 +108,14 @@ impl GpuPreview {
             }
             cut_offsets.push(cut_entries.len() as u32);
         }
-        let node_of_range: HashMap<(u32, u32), u32> = nodes.iter().enumerate().map(|(k, n)| ((n.first, n.first + n.count), k as u32)).collect();
         let part = tree.partition(settings.partition_deg.to_radians().max(1e-6));
         let partition: Vec<PartitionEntry> = part
             .ranges
             .iter()
-            .zip(&part.cones)
-            .map(|(&(a, z), c)| PartitionEntry {
-                range: [a, z, node_of_range.get(&(a, z)).copied().unwrap_or(0), 0],
-                cone: [c.axis.x as f32, c.axis.y as f32, c.axis.z as f32, c.cos as f32],
+            .zip(&part.nodes)
+            .map(|(&(a, z), &k)| {
+                let c = tree.corner_cone(k as usize);
+                PartitionEntry { range: [a, z, k, 0], cone: [c.axis.x as f32, c.axis.y as f32, c.axis.z as f32, c.cos as f32] }
             })
             .collect();
         let leaves: Vec<GpuLeaf> = tree

@@ -292,11 +292,11 @@ impl<'a> Prt<'a> {
         let lists: [&[Span]; 3] = std::array::from_fn(|i| corners.get(i).map_or(&[][..], |&(v, _)| self.vertex_spans(v)));
         let weights: [f64; 3] = std::array::from_fn(|i| corners.get(i).map_or(0.0, |c| c.1));
         let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
-        let (ranges, cones) = (&self.partition.ranges, &self.partition.cones);
+        let (ranges, nodes) = (&self.partition.ranges, &self.partition.nodes);
         let leaves = self.tree.leaf_count() as u32;
         let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
         for_each_run(&lists[..count], &weights[..count], ranges, leaves, |a, z, vis, si| {
-            let cone = &cones[si];
+            let cone = self.tree.corner_cone(nodes[si] as usize);
             // A partition node wholly below the horizon contributes nothing.
             let cb = cone.axis.dot(n);
             let sb = (1.0 - cb * cb).max(0.0).sqrt();
@@ -304,11 +304,11 @@ impl<'a> Prt<'a> {
                 return;
             }
             let moment = light.radiant_moment(a, z);
-            // ∫ L max(ω·n, 0) dω over the run, exact up to per-leaf constant radiance: the radiant
-            // moment · n where the run lies wholly above the horizon, else split by walking down the tree
-            // (sub-ranges above by their moments, leaves astride the horizon clipped).
+            // ∫ L max(ω·n, 0) dω over the run: the radiant moment · n where the run lies wholly above
+            // the horizon (exact up to per-leaf constant radiance), else split by walking down the tree
+            // (sub-ranges above by their moments, leaves astride the horizon by the linear clip).
             let mut cos_power = [0.0f64; 3];
-            self.tree.split_by_horizon(self.partition.nodes[si] as usize, a, z, n, &mut |lo, hi, clipped| match clipped {
+            self.tree.split_by_horizon(nodes[si] as usize, a, z, n, &mut |lo, hi, clipped| match clipped {
                 None => {
                     let m = if (lo, hi) == (a, z) { moment } else { light.radiant_moment(lo, hi) };
                     for c in 0..3 {

@@ -223,8 +223,9 @@ pub fn clipped_cosine_integral(v: &[DVec3; 4], n: DVec3) -> f64 {
 /// triangles (0, 1, 2) and (0, 2, 3), holding `split` and 1 − `split` of its solid angle `omega`, with
 /// ω·n linear on each (the mean of max(·, 0) of a linear function over a triangle is closed form). No
 /// transcendental functions: this is what the renderers evaluate for the ~2π/δ texels of width δ that
-/// every horizon cuts. Its error is second order in the texel's width — measured ≤ 1.5e-3 of
-/// Ω·max_k h_k for 1.4° texels (6×64²), against [`clipped_cosine_integral`], which is exact.
+/// every horizon cuts. Its error is second order in the texel's width — at most 1.04e-3 of Ω·max_k h_k
+/// for 1.4° texels (6×64², 20 random planes; the test allows 1.5e-3), against
+/// [`clipped_cosine_integral`], which is exact and stays the reference (the wgpu shader mirrors it).
 #[inline]
 pub fn clipped_cosine_linear(h: [f64; 4], omega: f64, split: f64) -> f64 {
     omega * (split * triangle_mean_positive(h[0], h[1], h[2]) + (1.0 - split) * triangle_mean_positive(h[0], h[2], h[3]))

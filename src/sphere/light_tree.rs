@@ -145,8 +145,7 @@ impl LightTree {
                 stack.push(node.left as usize);
             }
         }
-        let cones = nodes.iter().map(|&k| self.corner_cones[k as usize]).collect();
-        Partition { ranges, cones, nodes }
+        Partition { ranges, nodes }
     }
 
     /// The cone around node k's mean direction that holds every corner of its leaves' texels.
@@ -160,11 +159,10 @@ impl LightTree {
     /// caller's prefix sums: ∫ max(ω·n, 0) dω over it is its moment · n exactly) and `visit(i, i + 1,
     /// Some(c))` for each leaf the plane cuts, with c ≈ ∫_leaf max(ω·n, 0) dω by the linear rule
     /// ([`clipped_cosine_linear`](super::direction_set::clipped_cosine_linear), within ~1e-3 of the
-    /// leaf's Ω·max cos, so ≲ 1e-5 of the irradiance); parts wholly below are skipped. Work is proportional to the leaves the plane cuts (times the depth), not to
-    /// the range's size. [a, z) must lie inside node k.
+    /// leaf's Ω·max cos, so ≲ 1e-5 of the irradiance); parts wholly below are skipped. Work is
+    /// proportional to the leaves the plane cuts (times the depth), not to the range's size. [a, z) must
+    /// lie inside node k.
     pub fn split_by_horizon(&self, k: usize, a: usize, z: usize, n: DVec3, visit: &mut impl FnMut(usize, usize, Option<f64>)) {
-        // Depth-first with right pushed before left: the stack never holds more than depth + 1 nodes
-        // (a tree with 2^63 leaves would be needed to overflow it).
         // First down to the smallest node that holds the whole range (no cone tests on the way).
         let mut k = k;
         loop {
@@ -182,6 +180,8 @@ impl LightTree {
                 break;
             }
         }
+        // Then depth-first with right pushed before left: the stack never holds more than depth + 1
+        // nodes (a tree with 2^63 leaves would be needed to overflow it).
         let mut stack = [0u32; 64];
         let mut top = 1;
         stack[0] = k as u32;
@@ -226,9 +226,7 @@ impl LightTree {
 pub struct Partition {
     /// Leaf ranges [first, end), in leaf order.
     pub ranges: Vec<(u32, u32)>,
-    /// Per range, a cone holding every corner of its leaves.
-    pub cones: Vec<PartitionCone>,
-    /// Per range, its light-tree node.
+    /// Per range, its light-tree node ([`LightTree::corner_cone`] bounds its leaves).
     pub nodes: Vec<u32>,
 }
 
