@@ -55,6 +55,10 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
     let solver = QpSolver::new(&eq.h, eq.j, &energy.matrix(0.04), &vec![0.5; energy.rows()], energy.rows()).unwrap();
     let q: Vec<f64> = eq.r.iter().map(|x| -x).collect();
     let first = solver.solve(&q, None).unwrap();
+    let plain = solver.solve_unseeded(&q).unwrap();
+    let cold_seeded = time(5, || solver.solve(&q, None).unwrap());
+    let cold_plain = time(5, || solver.solve_unseeded(&q).unwrap());
+    let rows = first.active.iter().filter(|c| matches!(c, glint::fit::qp::Constraint::Row(_))).count();
     let q2: Vec<f64> = q.iter().enumerate().map(|(i, x)| if i % 10 == 0 { x * 1.03 } else { *x }).collect();
     let warm = time(20, || solver.solve(&q2, Some(&first.active)).unwrap());
     let mut hot = HotStart::default();
@@ -67,6 +71,12 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
         "{label}: N = {n} pixels, J = {}, {} energy rows | form H (RGB) {form:.2} ms | cold fit incl. H (RGB) {cold:.2} ms | warm re-solve {warm:.3} ms/channel | hot re-solve {hot_ms:.3} ms/channel",
         lobes.len(),
         energy.rows()
+    );
+    println!(
+        "    red channel cold: seeded {cold_seeded:.3} ms ({} GI iterations), plain GI {cold_plain:.3} ms ({} iterations); {} active ({rows} energy rows)",
+        first.iterations,
+        plain.iterations,
+        first.active.len()
     );
 }
 
@@ -82,7 +92,7 @@ fn main() {
     // A tangent-carrying sphere (1.6 K pixels at 160x120 with the default camera ~ the paper's N).
     let sphere = sphere_scene();
     for layout in [LobeLayout::PAPER, LobeLayout::Fibonacci { count: 300 }] {
-        for size in [(160, 120), (200, 150)] {
+        for size in [(160, 120), (200, 150), (640, 480)] {
             let (t, l) = transfer_for(&sphere, &env, layout, size);
             bench(&format!("sphere {}x{}, {}", size.0, size.1, layout.name()), &t, &l);
         }

@@ -221,6 +221,13 @@ fn random_problems_match_clarabel() {
             dc <= 1e-5 * cmax,
             "{label}: c differs from clarabel's by {dc}"
         );
+        // The plain GI path (no seed, no block start) reaches the same answer.
+        let plain = QpSolver::from_problem(&prob.problem())
+            .unwrap()
+            .solve_unseeded(&prob.q)
+            .unwrap();
+        check(&prob, &plain, &format!("{label} unseeded"));
+        assert!(max_diff(&plain.c, &sol.c) <= 1e-8 * cmax, "{label}: seeded and plain GI differ");
     }
     assert!(any_row, "no case had an energy row active");
 }
@@ -316,7 +323,9 @@ fn warm_start_matches_cold_and_is_faster() {
 
     let mut rng = Rng(32);
     let q2 = perturb(&mut rng, &prob.q, 0.05);
-    let (t_cold2, cold2) = time_ms(5, || solver.solve(&q2, None).unwrap());
+    let (t_cold2, cold2) = time_ms(5, || solver.solve_unseeded(&q2).unwrap());
+    let (t_seeded, seeded) = time_ms(5, || solver.solve(&q2, None).unwrap());
+    assert!(max_diff(&seeded.c, &cold2.c) <= 1e-9);
     let (t_warm, warm) = time_ms(5, || solver.solve(&q2, Some(&cold.active)).unwrap());
     let mut hot = HotStart::default();
     let hot_first = solver.solve_hot(&prob.q, &mut hot).unwrap();
@@ -366,8 +375,9 @@ fn warm_start_matches_cold_and_is_faster() {
     );
     println!("QpSolver::new (Cholesky + inverse): {t_new:.3} ms");
     println!(
-        "cold solve: {t_cold2:.3} ms, {} iterations (first q: {t_cold:.3} ms)",
-        cold2.iterations
+        "cold solve, plain GI: {t_cold2:.3} ms, {} iterations; seeded (active-set guess + block start): \
+         {t_seeded:.3} ms, {} GI iterations (first q, seeded: {t_cold:.3} ms)",
+        cold2.iterations, seeded.iterations
     );
     println!(
         "after a ±5 % change in 10 % of q ({} active-set changes):",

@@ -16,6 +16,11 @@ use super::qp::{Constraint, QpError, QpSolver};
 use crate::brdf::EnergyTable;
 use crate::transfer::Transfer;
 
+/// Above this many multiply-adds (N·J²) H is formed as two halves side by side: 640×480 views at
+/// J = 147 (N ≈ 45 K, 1e9), not the fit view (N ≈ 2.7 K, 6e7), where the three channels already
+/// run side by side.
+const GRAM_SPLIT_FLOPS: usize = 200_000_000;
+
 /// One view's contribution: its transfer and, per pixel, target radiance and least-squares weight.
 pub struct ViewData<'a> {
     pub transfer: &'a Transfer,
@@ -59,10 +64,29 @@ pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> Norma
         y[i] = sw * (v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse);
         weight_sum += w;
     }
-    let a = faer::MatRef::from_row_major_slice(&buf, n, j);
-    let mut hm = faer::Mat::<f64>::zeros(j, j);
-    let par = faer::Par::Seq;
-    faer::linalg::matmul::matmul(hm.as_mut(), faer::Accum::Replace, a.transpose(), a, 1.0, par);
+    // AᵀA of a block of rows, sequential.
+    let gram = |rows: &[f64]| {
+        let m = rows.len() / j.max(1);
+        let a = faer::MatRef::from_row_major_slice(rows, m, j);
+        let mut out = faer::Mat::<f64>::zeros(j, j);
+        faer::linalg::matmul::matmul(out.as_mut(), faer::Accum::Replace, a.transpose(), a, 1.0, faer::Par::Seq);
+        out
+    };
+    // Large problems (a full-resolution view) split the rows into two fixed halves formed side by
+    // side (rayon::join of two sequential GEMMs, so no oversubscription) and added: the split does not
+    // depend on the thread count, so neither do the bits.
+    let hm = if n * j * j >= GRAM_SPLIT_FLOPS && n >= 2 {
+        let (top, bottom) = buf.split_at((n / 2) * j);
+        let (mut x, y) = rayon::join(|| gram(top), || gram(bottom));
+        for c in 0..j {
+            for r in 0..j {
+                x[(r, c)] += y[(r, c)];
+            }
+        }
+        x
+    } else {
+        gram(&buf)
+    };
     let mut h = vec![0.0f64; j * j];
     for r in 0..j {
         for c in r..j {
