@@ -1249,6 +1249,13 @@ mod tests {
         );
     }
 
+    /// H = Hilbert matrix + diag·I (n×n) and two positive energy rows.
+    fn hilbert_problem(n: usize, diag: f64) -> (Vec<f64>, Vec<f64>) {
+        let h = (0..n * n).map(|k| 1.0 / (1 + k / n + k % n) as f64 + if k / n == k % n { diag } else { 0.0 }).collect();
+        let g = (0..2 * n).map(|k| ((k * 7) % 5) as f64 * 0.3 + 0.1).collect();
+        (h, g)
+    }
+
     /// JᵀHJ = I for the working factor (H well conditioned, δ negligible).
     fn assert_jthj_is_identity(h: &[f64], n: usize, w: &Work) {
         for a in 0..n {
@@ -1264,15 +1271,7 @@ mod tests {
     fn factor_updates_keep_the_invariants() {
         // After adds and drops, JᵀHJ = I and JᵀN = [R; 0].
         let n = 5;
-        let mut h = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                h[i * n + j] = 1.0 / (1 + i + j) as f64 + if i == j { 1.0 } else { 0.0 };
-            }
-        }
-        let g: Vec<f64> = (0..2 * n)
-            .map(|k| ((k * 7) % 5) as f64 * 0.3 + 0.1)
-            .collect();
+        let (h, g) = hilbert_problem(n, 1.0);
         let u = [1.0, 2.0];
         let solver = QpSolver::new(&h, n, &g, &u, 2).unwrap();
         let q = vec![0.0; n];
@@ -1316,13 +1315,7 @@ mod tests {
         // with R upper triangular, rows added after by rotations; and x, the multipliers from it
         // equal those of the rotation path.
         let n = 7;
-        let mut h = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                h[i * n + j] = 1.0 / (1 + i + j) as f64 + if i == j { 0.5 } else { 0.0 };
-            }
-        }
-        let g: Vec<f64> = (0..2 * n).map(|k| ((k * 7) % 5) as f64 * 0.3 + 0.1).collect();
+        let (h, g) = hilbert_problem(n, 0.5);
         let u = [1.0, 2.0];
         let solver = QpSolver::new(&h, n, &g, &u, 2).unwrap();
         let q: Vec<f64> = (0..n).map(|i| (i as f64 - 3.0) * 0.9).collect();
