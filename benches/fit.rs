@@ -40,6 +40,9 @@ fn transfer_for(scene: &Scene, env: &glint::env::EnvMap, layout: LobeLayout, siz
 }
 
 fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
+    if !selected(label) {
+        return;
+    }
     let energy = glint::brdf::EnergyTable::with_defaults(lobes);
     let n = transfer.pixels.len();
     // A bright stroke's worth of targets over a third of the pixels, keep weight elsewhere.
@@ -80,21 +83,32 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
     );
 }
 
+/// `GLINT_BENCH_ONLY=640x480 cargo bench --bench fit` runs only the rows whose label contains it.
+fn selected(label: &str) -> bool {
+    std::env::var("GLINT_BENCH_ONLY").map_or(true, |f| label.contains(&f))
+}
+
 fn main() {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
     let env = glint::env::load(&assets.join("hdr/small/courtyard_512.exr")).unwrap();
     let bunny = glint::scene::import(&assets.join("glb/bunny.glb")).unwrap();
     let iso = LobeLayout::Isotropic { count: 24 };
-    let (t, l) = transfer_for(&bunny, &env, iso, (160, 120));
-    bench("bunny 160x120, isotropic", &t, &l);
-    let (t, l) = transfer_for(&bunny, &env, iso, (640, 480));
-    bench("bunny 640x480, isotropic", &t, &l);
+    for size in [(160, 120), (640, 480)] {
+        let label = format!("bunny {}x{}, isotropic", size.0, size.1);
+        if selected(&label) {
+            let (t, l) = transfer_for(&bunny, &env, iso, size);
+            bench(&label, &t, &l);
+        }
+    }
     // A tangent-carrying sphere (1.6 K pixels at 160x120 with the default camera ~ the paper's N).
     let sphere = sphere_scene();
     for layout in [LobeLayout::PAPER, LobeLayout::Fibonacci { count: 300 }] {
         for size in [(160, 120), (200, 150), (640, 480)] {
-            let (t, l) = transfer_for(&sphere, &env, layout, size);
-            bench(&format!("sphere {}x{}, {}", size.0, size.1, layout.name()), &t, &l);
+            let label = format!("sphere {}x{}, {}", size.0, size.1, layout.name());
+            if selected(&label) {
+                let (t, l) = transfer_for(&sphere, &env, layout, size);
+                bench(&label, &t, &l);
+            }
         }
     }
 }

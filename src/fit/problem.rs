@@ -15,6 +15,7 @@
 use super::qp::{Constraint, QpError, QpSolver};
 use crate::brdf::EnergyTable;
 use crate::transfer::Transfer;
+use faer::linalg::matmul::triangular::BlockStructure;
 
 /// Above this many multiply-adds (N·J²) H is formed as two halves side by side: 640×480 views at
 /// J = 147 (N ≈ 45 K, 1e9), not the fit view (N ≈ 2.7 K, 6e7), where the three channels already
@@ -40,71 +41,78 @@ pub struct NormalEquations {
     pub pixels: usize,
 }
 
+/// Rows gathered per GEMM call: a block of √W·[T | y] (≈ 1.2 MB at J = 147) stays in cache, where
+/// gathering all N rows first cost as much as the product itself (20 ms of 55 ms per channel at
+/// 640×480, J = 147, measured 2026-11-23).
+const GATHER_ROWS: usize = 512;
+
 /// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64.
 ///
-/// A = √W·T (N × J, row-major as T is stored) is gathered once and H = AᵀA is one blocked GEMM (faer),
-/// sequential: deterministic, and safe to call from many threads at once (faer's rayon GEMM called from
-/// concurrent callers thrashed: the fit tests took 317 s instead of 35 s).
+/// A = √W·[T | y] with y = B − ρd/π E (N × (J+1)) is gathered a block of rows at a time and its Gram
+/// matrix AᵀA accumulated by faer's lower-triangular GEMM, sequential: one product gives H (the
+/// leading J×J), r (the last row) and Σ w y² (the corner), and the triangle halves the work. Sequential
+/// so that it is deterministic and safe to call from many threads at once (faer's rayon GEMM called
+/// from concurrent callers thrashed: the fit tests took 317 s instead of 35 s).
 pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> NormalEquations {
     let j = views.first().map_or(0, |v| v.transfer.lobes);
     let items: Vec<(usize, usize)> =
         views.iter().enumerate().flat_map(|(vi, v)| (0..v.weight.len().min(v.transfer.pixels.len())).map(move |p| (vi, p))).collect();
     let n = items.len();
-    let mut buf = vec![0.0f64; n * j];
-    let mut y = vec![0.0f64; n];
-    let mut weight_sum = 0.0;
-    for (i, &(vi, p)) in items.iter().enumerate() {
-        let v = &views[vi];
-        let w = v.weight[p].max(0.0);
-        let sw = w.sqrt();
-        for (x, t) in buf[i * j..(i + 1) * j].iter_mut().zip(v.transfer.t_row(p, channel)) {
-            *x = sw * *t as f64;
+    let jj = j + 1;
+    // Lower triangle of AᵀA over a run of pixels, in fixed blocks of rows.
+    let gram = |items: &[(usize, usize)]| {
+        let mut out = faer::Mat::<f64>::zeros(jj, jj);
+        let mut buf = vec![0.0f64; GATHER_ROWS.min(items.len()) * jj];
+        for block in items.chunks(GATHER_ROWS) {
+            for (row, &(vi, p)) in buf.chunks_exact_mut(jj).zip(block) {
+                let v = &views[vi];
+                let sw = v.weight[p].max(0.0).sqrt();
+                for (x, t) in row[..j].iter_mut().zip(v.transfer.t_row(p, channel)) {
+                    *x = sw * *t as f64;
+                }
+                let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
+                row[j] = sw * (v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse);
+            }
+            let a = faer::MatRef::from_row_major_slice(&buf[..block.len() * jj], block.len(), jj);
+            faer::linalg::matmul::triangular::matmul(
+                out.as_mut(),
+                BlockStructure::TriangularLower,
+                faer::Accum::Add,
+                a.transpose(),
+                BlockStructure::Rectangular,
+                a,
+                BlockStructure::Rectangular,
+                1.0,
+                faer::Par::Seq,
+            );
         }
-        let diffuse = rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
-        y[i] = sw * (v.target.get(p).map_or(0.0, |t| t[channel]) - diffuse);
-        weight_sum += w;
-    }
-    // AᵀA of a block of rows, sequential.
-    let gram = |rows: &[f64]| {
-        let m = rows.len() / j.max(1);
-        let a = faer::MatRef::from_row_major_slice(rows, m, j);
-        let mut out = faer::Mat::<f64>::zeros(j, j);
-        faer::linalg::matmul::matmul(out.as_mut(), faer::Accum::Replace, a.transpose(), a, 1.0, faer::Par::Seq);
         out
     };
-    // Large problems (a full-resolution view) split the rows into two fixed halves formed side by
-    // side (rayon::join of two sequential GEMMs, so no oversubscription) and added: the split does not
-    // depend on the thread count, so neither do the bits.
-    let hm = if n * j * j >= GRAM_SPLIT_FLOPS && n >= 2 {
-        let (top, bottom) = buf.split_at((n / 2) * j);
+    // Large problems (a full-resolution view) split the pixels into two fixed halves formed side by
+    // side (rayon::join of two sequential products, so no oversubscription) and added: the split does
+    // not depend on the thread count, so neither do the bits.
+    let g = if n * j * j >= GRAM_SPLIT_FLOPS && n >= 2 {
+        let (top, bottom) = items.split_at(n / 2);
         let (mut x, y) = rayon::join(|| gram(top), || gram(bottom));
-        for c in 0..j {
-            for r in 0..j {
+        for c in 0..jj {
+            for r in c..jj {
                 x[(r, c)] += y[(r, c)];
             }
         }
         x
     } else {
-        gram(&buf)
+        gram(&items)
     };
     let mut h = vec![0.0f64; j * j];
-    for r in 0..j {
-        for c in r..j {
-            // Symmetrise exactly (the GEMM's halves may differ in the last bit). faer's lower-triangle
-            // product was tried (2026-11-22) and measured no faster at J = 147 (12.6 vs 12.1 ms for RGB).
-            let v = 0.5 * (hm[(r, c)] + hm[(c, r)]);
-            h[r * j + c] = v;
-            h[c * j + r] = v;
+    for c in 0..j {
+        for r in c..j {
+            h[r * j + c] = g[(r, c)];
+            h[c * j + r] = g[(r, c)];
         }
     }
-    let mut r = vec![0.0f64; j];
-    for (row, yi) in buf.chunks_exact(j.max(1)).zip(&y) {
-        for (rk, x) in r.iter_mut().zip(row) {
-            *rk += x * yi;
-        }
-    }
-    let constant = y.iter().map(|v| v * v).sum();
-    NormalEquations { j, h, r, constant, weight_sum, pixels: n }
+    let r = (0..j).map(|k| g[(j, k)]).collect();
+    let weight_sum = items.iter().map(|&(vi, p)| views[vi].weight[p].max(0.0)).sum();
+    NormalEquations { j, h, r, constant: g[(j, j)], weight_sum, pixels: n }
 }
 
 /// The per-channel system with its solver, kept across strokes (H fixed, q changing).
@@ -195,6 +203,80 @@ pub fn solve_rgb_from(
             let (r, g, b) = (r?, g?, b?);
             let (g, b) = rayon::join(|| g.solve(Some(&r.active)), || b.solve(Some(&r.active)));
             Ok([r, g?, b?])
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transfer::PixelSample;
+
+    fn transfer(n: usize, j: usize, seed: u64) -> Transfer {
+        let mut s = seed;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % 1_000_003) as f64 / 1_000_003.0
+        };
+        let pixel = PixelSample { x: 0, y: 0, triangle: 0, bary: [1.0, 0.0, 0.0], position: glam::Vec3::ZERO, normal: glam::Vec3::Z };
+        Transfer {
+            width: 1,
+            height: 1,
+            pixels: vec![pixel; n],
+            lobes: j,
+            t: (0..n * 3 * j).map(|_| rnd() as f32).collect(),
+            irradiance: (0..n).map(|_| [rnd(), rnd(), rnd()]).collect(),
+            seconds: 0.0,
+        }
+    }
+
+    /// H, r and the constant against the plain f64 sums over pixels, for two views whose pixel count
+    /// is no multiple of the gather block and large enough (N·J² ≥ GRAM_SPLIT_FLOPS) that the product
+    /// is formed as two halves; negative weights count as 0.
+    #[test]
+    fn normal_equations_equal_the_direct_sums() {
+        let j = 147;
+        let sizes = [5000, GRAM_SPLIT_FLOPS / (j * j) - 5000 + 777];
+        let transfers: Vec<Transfer> = sizes.iter().zip([3u64, 17]).map(|(&n, s)| transfer(n, j, s)).collect();
+        let targets: Vec<Vec<[f64; 3]>> = sizes.iter().map(|&n| (0..n).map(|i| [0.3 + (i % 7) as f64 * 0.1, 0.2, -0.1]).collect()).collect();
+        let weights: Vec<Vec<f64>> = sizes.iter().map(|&n| (0..n).map(|i| [1.0, 0.1, -0.5, 0.0][i % 4]).collect()).collect();
+        let views: Vec<ViewData> =
+            (0..2).map(|v| ViewData { transfer: &transfers[v], target: &targets[v], weight: &weights[v] }).collect();
+        assert!(sizes.iter().sum::<usize>() * j * j >= GRAM_SPLIT_FLOPS);
+        for channel in 0..3 {
+            let rho_d = 0.4;
+            let eq = normal_equations(&views, channel, rho_d);
+            let mut h = vec![0.0f64; j * j];
+            let mut r = vec![0.0f64; j];
+            let (mut constant, mut weight_sum) = (0.0, 0.0);
+            for v in &views {
+                for p in 0..v.weight.len() {
+                    let w = v.weight[p].max(0.0);
+                    let t = v.transfer.t_row(p, channel);
+                    let y = v.target[p][channel] - rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
+                    for a in 0..j {
+                        r[a] += w * t[a] as f64 * y;
+                        for b in 0..j {
+                            h[a * j + b] += w * t[a] as f64 * t[b] as f64;
+                        }
+                    }
+                    constant += w * y * y;
+                    weight_sum += w;
+                }
+            }
+            assert_eq!(eq.pixels, sizes.iter().sum::<usize>());
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-11 * b.abs().max(1.0);
+            for k in 0..j * j {
+                assert!(close(eq.h[k], h[k]), "H[{k}]: {} vs {}", eq.h[k], h[k]);
+                assert_eq!(eq.h[k], eq.h[(k % j) * j + k / j], "H symmetric");
+            }
+            for k in 0..j {
+                assert!(close(eq.r[k], r[k]), "r[{k}]: {} vs {}", eq.r[k], r[k]);
+            }
+            assert!(close(eq.constant, constant), "{} vs {constant}", eq.constant);
+            assert!(close(eq.weight_sum, weight_sum));
         }
     }
 }
