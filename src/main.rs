@@ -153,8 +153,9 @@ struct BakeArgs {
     #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
     epsilon: f64,
     /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
-    #[arg(long, default_value_t = glint::bake::BakeSettings::default().cell_deg.unwrap_or(0.0))]
-    cell_deg: f64,
+    /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the reason).
+    #[arg(long)]
+    cell_deg: Option<f64>,
     /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
     trace_leaves: usize,
@@ -294,7 +295,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
     let settings = BakeSettings {
         resolution: args.resolution,
         cut: CutSettings { epsilon: args.epsilon, max_cut: args.max_cut, trace_leaves: args.trace_leaves, cell_leaves: 1, ..CutSettings::default() },
-        cell_deg: (args.cell_deg > 0.0).then_some(args.cell_deg),
+        cell_deg: args.cell_deg,
         ..BakeSettings::default()
     };
     // Every input and argument is checked before anything is baked or written: the loaders refuse
@@ -394,6 +395,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         println!("decision: {} — {}", if d.trace_visibility { "trace visibility" } else { "no ray tracing" }, d.trace_reason);
         println!("decision: {} — {}", if d.anisotropic { "anisotropic frame" } else { "isotropic fit" }, d.frame_reason);
         println!("decision: {} directions ({} per face) — {}", 6 * d.resolution * d.resolution, d.resolution, d.resolution_reason);
+        println!("decision: visibility cells of {}° — {}", d.cell_deg, d.cell_reason);
         println!(
             "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",
             s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds, s.decision_seconds

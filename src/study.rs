@@ -83,7 +83,8 @@ pub enum StudyError {
 #[derive(Debug, Clone, PartialEq)]
 struct Knobs {
     resolution: Option<usize>,
-    cell_deg: f64,
+    /// None: decided (decision (d)).
+    cell_deg: Option<f64>,
     epsilon: f64,
     max_cut: usize,
     layout: Option<LobeLayout>,
@@ -98,7 +99,7 @@ impl Knobs {
         let b = BakeSettings::default();
         Self {
             resolution: None,
-            cell_deg: b.cell_deg.unwrap_or(11.25),
+            cell_deg: b.cell_deg,
             epsilon: b.cut.epsilon,
             max_cut: b.cut.max_cut,
             layout: None,
@@ -109,7 +110,7 @@ impl Knobs {
         }
     }
     fn bake_key(&self) -> String {
-        format!("{:?}/{}/{}/{}", self.resolution, self.cell_deg, self.epsilon, self.max_cut)
+        format!("{:?}/{:?}/{}/{}", self.resolution, self.cell_deg, self.epsilon, self.max_cut)
     }
     fn changes_material(&self) -> bool {
         let d = Self::defaults();
@@ -127,7 +128,7 @@ struct BakeResult {
 }
 
 fn run_bake(scene: &Scene, env: &EnvMap, k: &Knobs) -> Result<BakeResult, StudyError> {
-    let mut settings = BakeSettings { resolution: k.resolution, cell_deg: Some(k.cell_deg), ..BakeSettings::default() };
+    let mut settings = BakeSettings { resolution: k.resolution, cell_deg: k.cell_deg, ..BakeSettings::default() };
     settings.cut.epsilon = k.epsilon;
     settings.cut.max_cut = k.max_cut;
     let t0 = Instant::now();
@@ -142,9 +143,10 @@ fn coefficient_slices(m: &Material) -> [&[f64]; 3] {
 }
 
 /// The rows a study sweeps: the defaults, then one knob at a time, then the paper's settings.
-fn settings(quick: bool, anisotropic: bool, decided_resolution: usize) -> Vec<(String, String, Knobs)> {
+fn settings(quick: bool, anisotropic: bool, decided_resolution: usize, decided_cell: f64) -> Vec<(String, String, Knobs)> {
     let d = Knobs::defaults();
-    let mut rows = vec![("default".to_string(), "all defaults".to_string(), d.clone())];
+    let label = format!("all defaults (decided: 6·{decided_resolution}² directions, {decided_cell}° cells)");
+    let mut rows = vec![("default".to_string(), label, d.clone())];
     let mut push = |knob: &str, value: String, k: Knobs| rows.push((knob.to_string(), value, k));
     // (In --quick, one value per knob and no paper row: J = 147 alone costs half a minute.)
     let pick = |full: &[f64], q: &[f64]| -> Vec<f64> { if quick { q.to_vec() } else { full.to_vec() } };
@@ -152,8 +154,9 @@ fn settings(quick: bool, anisotropic: bool, decided_resolution: usize) -> Vec<(S
     for n in res_values.into_iter().filter(|&n| n >= 8) {
         push("direction_set_n", format!("{n} (6·n² = {} directions)", 6 * n * n), Knobs { resolution: Some(n), ..d.clone() });
     }
-    for c in pick(&[22.5, 5.625, 2.8125], &[22.5, 5.625]) {
-        push("visibility_cell_deg", format!("{c}"), Knobs { cell_deg: c, ..d.clone() });
+    // The visibility cell around the decided one (decision (d)).
+    for c in pick(&[22.5, 11.25, 5.625, 2.8125], &[22.5]).into_iter().filter(|&c| c != decided_cell) {
+        push("visibility_cell_deg", format!("{c}"), Knobs { cell_deg: Some(c), ..d.clone() });
     }
     for e in pick(&[0.08, 0.005], &[0.08]) {
         push("cut_epsilon", format!("{e}"), Knobs { epsilon: e, ..d.clone() });
@@ -210,8 +213,9 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
     let base = run_bake(scene, env, &defaults)?;
     let anisotropic = base.bake.decisions.anisotropic;
     let decided = base.bake.decisions.resolution;
+    let decided_cell = base.bake.decisions.cell_deg;
     bakes.insert(defaults.bake_key(), base);
-    let plan = settings(options.quick, anisotropic, decided);
+    let plan = settings(options.quick, anisotropic, decided, decided_cell);
     let mut baseline: Option<Material> = None;
     let mut truths: Vec<(Vec<u64>, Image)> = Vec::new();
     let mut fits: HashMap<String, (Material, f64, f64)> = HashMap::new();

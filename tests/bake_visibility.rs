@@ -13,7 +13,7 @@ fn settings(resolution: usize, epsilon: f64) -> BakeSettings {
     BakeSettings {
         resolution: Some(resolution),
         cut: CutSettings { epsilon, max_cut: 100_000, cell_leaves: 1, ..CutSettings::default() },
-        cell_deg: None,
+        cell_deg: Some(0.0),
         ..BakeSettings::default()
     }
 }
@@ -115,4 +115,78 @@ fn a_sphere_traces_no_rays_and_matches_what_tracing_gives() {
         assert!(all_visible, "vertex {v}: a convex object's vertex sees occlusion");
     }
     println!("sphere: {} vertices, 0 rays; forced tracing: {} rays", bake.stats.vertices, traced.stats.rays_traced);
+}
+
+/// Irradiance of the environment's luminance at every vertex from a bake's cuts: Σ over cut nodes of
+/// V × Σ_leaves L·max(moment·n, 0) (what the transfer sums, with the vertex's own normal).
+fn cut_irradiance(baker: &Baker, bake: &glint::bake::Bake, luminance: &[f64]) -> Vec<f64> {
+    let tree = &baker.tree;
+    (0..bake.cuts.vertex_count())
+        .map(|v| {
+            let (_, n) = baker.ray_origin(v).unwrap();
+            bake.cuts
+                .cut(v)
+                .map(|(k, vis)| {
+                    let node = tree.nodes()[k as usize];
+                    let range = node.first as usize..(node.first + node.count) as usize;
+                    vis as f64 * range.map(|l| luminance[l] * tree.leaf_moments()[l].dot(n).max(0.0)).sum::<f64>()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Decision (d): the probe's estimate of what a cell size costs must agree with what whole bakes
+/// with those cells cost at every vertex (against a bake with a ray per direction, same ε), and the
+/// decision must follow the light: the bunny's visibility is fine with 11.25° cells under the broad
+/// courtyard sky but needs 5.625° under the studio's small softboxes.
+#[test]
+fn the_visibility_cell_decision_follows_the_light_and_its_estimate_matches_whole_bakes() {
+    use glint::bake::decisions::{CELL_CANDIDATES_DEG, CELL_TOLERANCE};
+    let scene = glint::scene::import(&common::assets().join("glb/bunny.glb")).unwrap();
+    let mut decided = Vec::new();
+    for map in ["studio_1k", "courtyard_1k"] {
+        let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+        let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+        let d = baker.decisions.clone();
+        println!("{map}: {}° ({})", d.cell_deg, d.cell_reason);
+        assert_eq!(d.cell_probe_errors.len(), CELL_CANDIDATES_DEG.len());
+        assert_eq!(baker.settings.cut.cell_leaves, glint::bake::decisions::cell_leaves(d.resolution, d.cell_deg));
+        decided.push(d.cell_deg);
+        // Whole bakes at each candidate and with a ray per direction, at the decided resolution.
+        let radiance = glint::light::texel_radiance(&env, &baker.set, 0.0);
+        let luminance: Vec<f64> = baker.tree.leaf_texels().iter().map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0).collect();
+        let bake_with = |deg: f64| {
+            let b = Baker::new(&scene, &env, BakeSettings { resolution: Some(d.resolution), cell_deg: Some(deg), ..BakeSettings::default() }).unwrap();
+            let bake = b.bake_all(None, &|_| {});
+            cut_irradiance(&b, &bake, &luminance)
+        };
+        let exact = bake_with(0.0);
+        let den: f64 = exact.iter().map(|e| e * e).sum();
+        for &(deg, estimate) in &d.cell_probe_errors {
+            let e = bake_with(deg);
+            let whole = (e.iter().zip(&exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / den).sqrt();
+            println!("  {deg}°: probe estimate {:.2} %, whole bake {:.2} %", estimate * 100.0, whole * 100.0);
+            assert!(estimate < 2.0 * whole + 0.003 && whole < 2.0 * estimate + 0.003, "{map} {deg}°: estimate {estimate}, whole bake {whole}");
+            if deg == d.cell_deg && estimate <= CELL_TOLERANCE {
+                assert!(whole <= 1.5 * CELL_TOLERANCE, "{map}: chose {deg}° but the whole bake is {whole} off");
+            }
+        }
+    }
+    assert_eq!(decided, vec![5.625, 11.25], "studio needs the finer cells, courtyard does not");
+}
+
+/// An explicit cell size is used as given and a bad one is refused in one line.
+#[test]
+fn explicit_and_invalid_cell_sizes() {
+    let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings { resolution: Some(32), cell_deg: Some(22.5), ..BakeSettings::default() }).unwrap();
+    assert_eq!(baker.decisions.cell_deg, 22.5);
+    assert_eq!(baker.settings.cut.cell_leaves, 64, "(32 · 22.5 / 90)² leaves");
+    assert!(baker.decisions.cell_reason.contains("explicitly"));
+    for bad in [-1.0, f64::NAN, f64::INFINITY] {
+        let err = Baker::new(&scene, &env, BakeSettings { cell_deg: Some(bad), ..BakeSettings::default() }).err().expect("refused").to_string();
+        assert!(err.contains("cell") && !err.contains('\n'), "{err}");
+    }
 }

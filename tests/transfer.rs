@@ -159,7 +159,7 @@ fn transfer_matches_direct_integration_and_converges() {
     let mut previous = f64::INFINITY;
     // Coarse, the defaults (resolution decided from the environment and the BRDF, 5.6° visibility cells,
     // ε = 0.02), and fine (every direction traced, ε = 0, 128 per side).
-    for (label, resolution, cell_deg, epsilon) in [("coarse", Some(16), Some(11.25), 0.05), ("default", None, BakeSettings::default().cell_deg, CutSettings::default().epsilon), ("fine", Some(128), None, 0.0)] {
+    for (label, resolution, cell_deg, epsilon) in [("coarse", Some(16), Some(11.25), 0.05), ("default", None, BakeSettings::default().cell_deg, CutSettings::default().epsilon), ("fine", Some(128), Some(0.0), 0.0)] {
         let settings = BakeSettings { resolution, cell_deg, cut: CutSettings { epsilon, cell_leaves: 1, ..CutSettings::default() }, ..BakeSettings::default() };
         let baker = Baker::new(&scene, &env, settings).unwrap();
         let (resolution, cell_leaves) = (baker.decisions.resolution, baker.settings.cut.cell_leaves);

@@ -40,16 +40,16 @@ pub struct BakeSettings {
     /// Trace even when no ray can hit the scene (to check decision (a)).
     pub force_trace: bool,
     /// Angular size of a visibility cell (degrees); sets `cut.cell_leaves` for the chosen resolution so
-    /// that the number of rays does not grow with it: (n · cell_deg / 90°)² leaves per cell (16 at
-    /// n = 32, 64 at n = 64 for the default 11.25°). `None` keeps `cut.cell_leaves` as given. Measured
-    /// (tests/transfer.rs): T is 0.60 % off direct integration on suzanne with 11.25° and with 5.6°
-    /// cells, while dragon_100k bakes in 5.8 s instead of 16.4 s.
+    /// that the number of rays does not grow with it: (n · cell_deg / 90°)² leaves per cell (64 at
+    /// n = 64 for 11.25°; 0 gives a ray per direction). `None` decides it from the scene and the
+    /// environment (decision (d), [`decisions::decide_cell`]): 11.25° unless small bright lights need
+    /// 5.625°. Measured on dragon_100k: 11.25° bakes in 5.8 s, 5.625° in 16.4 s.
     pub cell_deg: Option<f64>,
 }
 
 impl Default for BakeSettings {
     fn default() -> Self {
-        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: Some(11.25) }
+        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None }
     }
 }
 
@@ -172,6 +172,9 @@ impl<'a> Baker<'a> {
         if !(settings.cut.epsilon >= 0.0 && settings.cut.epsilon.is_finite()) {
             return Err(BakeError::Settings(format!("epsilon must be finite and >= 0, not {}", settings.cut.epsilon)));
         }
+        if let Some(deg) = settings.cell_deg.filter(|d| !(*d >= 0.0 && d.is_finite())) {
+            return Err(BakeError::Settings(format!("the visibility cell size must be finite and >= 0 degrees, not {deg}")));
+        }
         let lambda = srbf::lambda_from_sigma(settings.sigma)?;
         let (resolution, resolution_reason, probe_errors) = match settings.resolution {
             Some(n) => (n, format!("set explicitly to {n} per side ({} directions)", 6 * n * n), Vec::new()),
@@ -179,10 +182,6 @@ impl<'a> Baker<'a> {
         };
         let set = DirectionSet::cube(resolution)?;
         let mut settings = settings;
-        if let Some(deg) = settings.cell_deg {
-            let per_side = (resolution as f64 * deg / 90.0).max(1.0);
-            settings.cut.cell_leaves = (per_side * per_side).round().max(1.0) as usize;
-        }
         let tree = LightTree::build(&set);
         let tracer = Tracer::new(mesh);
         let positions: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
@@ -193,6 +192,19 @@ impl<'a> Baker<'a> {
         if settings.force_trace && !needs_trace {
             trace_reason.push_str(" (traced anyway: force_trace)");
         }
+        let (cell_deg, cell_reason, cell_probe_errors) = match settings.cell_deg {
+            Some(deg) => (deg, format!("set explicitly to {deg}° ({} directions per cell)", decisions::cell_leaves(resolution, deg)), Vec::new()),
+            None if !trace_visibility => {
+                let deg = decisions::CELL_CANDIDATES_DEG[0];
+                (deg, format!("{deg}°: no visibility is traced, so the cell size does not matter"), Vec::new())
+            }
+            None => {
+                let origins: Vec<(DVec3, DVec3)> = positions.iter().zip(&normals).map(|(p, n)| (*p + *n * offset, *n)).collect();
+                decisions::decide_cell(env, &set, &tree, &origins, &tracer)
+            }
+        };
+        settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
+        settings.cell_deg = Some(cell_deg);
         let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
         let decisions = Decisions {
             trace_visibility,
@@ -203,6 +215,9 @@ impl<'a> Baker<'a> {
             resolution,
             resolution_reason,
             resolution_probe_errors: probe_errors,
+            cell_deg,
+            cell_reason,
+            cell_probe_errors,
         };
         Ok(Self {
             scene,
