@@ -93,15 +93,20 @@ pub enum StudyError {
 /// rows measured later).
 const TIMING_RUNS: usize = 3;
 
-/// Seconds of the fastest of `runs` calls of `f`.
-fn fastest_of<T>(runs: usize, mut f: impl FnMut() -> T) -> f64 {
-    (0..runs.max(1))
-        .map(|_| {
-            let t0 = Instant::now();
-            std::hint::black_box(f());
-            t0.elapsed().as_secs_f64()
-        })
-        .fold(f64::INFINITY, f64::min)
+/// The last result of `runs` calls of `f` (at least one), and the seconds of the fastest call.
+fn fastest_of<T>(runs: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    let mut timed = || {
+        let t0 = Instant::now();
+        let r = f();
+        (r, t0.elapsed().as_secs_f64())
+    };
+    let (mut result, mut best) = timed();
+    for _ in 1..runs {
+        let (r, secs) = timed();
+        result = r;
+        best = best.min(secs);
+    }
+    (result, best)
 }
 
 /// The settings of one row.
@@ -279,7 +284,7 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
             let light = LightSums::new(env, &b.set, &b.tree, 0.0);
             let ctx = crate::transfer::TransferContext::new(&scene.mesh, &b.bake.cuts, &b.tree, &lobes, b.tangents.as_deref(), None);
             let (fw, fh) = outcome.views[0].fit_size;
-            let transfer_secs = fastest_of(TIMING_RUNS, || ctx.compute(&light, &outcome.views[0].camera, fw, fh, outcome.material.f0));
+            let (_, transfer_secs) = fastest_of(TIMING_RUNS, || ctx.compute(&light, &outcome.views[0].camera, fw, fh, outcome.material.f0));
             fits.insert(fit_key.clone(), (outcome.material, transfer_secs, (fit_total - transfer_secs).max(0.0)));
         }
         let (fitted, transfer_secs, fit_secs) = fits[&fit_key].clone();
@@ -315,8 +320,8 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
                     let prt = Prt::new(&scene.mesh, &b.bake.cuts, &b.tree, b.tangents.as_deref(), PrtSettings::default());
                     prt.render(&light, &camera, w, h, &Shading { rho_d: material.rho_d, f0: material.f0, specular: Specular::Table(&tab) })
                 };
-                let img = frame();
-                (fastest_of(TIMING_RUNS, frame), img.relative_rmse(truth).unwrap_or(f64::NAN))
+                let (img, secs) = fastest_of(TIMING_RUNS, frame);
+                (secs, img.relative_rmse(truth).unwrap_or(f64::NAN))
             }
         };
         rows.push(StudyRow {

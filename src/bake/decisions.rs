@@ -292,8 +292,8 @@ pub fn decide_cell(env: &EnvMap, set: &DirectionSet, tree: &LightTree, origins: 
                     }
                 }
                 for (c, e) in per_candidate.iter_mut().enumerate() {
-                    let sub = if c == 0 { vec![k] } else { nodes_of_at_most(tree, cell_leaves(resolution, CELL_CANDIDATES_DEG[c]) as u32, k) };
-                    for s in sub {
+                    // (For the coarsest candidate that is the cell k itself.)
+                    for s in nodes_of_at_most(tree, cell_leaves(resolution, CELL_CANDIDATES_DEG[c]) as u32, k) {
                         let ws = node_weight(s);
                         if ws > 0.0 && !tracer.occluded(apex, nodes[s].mean_direction.as_vec3().into()) {
                             *e += ws;
