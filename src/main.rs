@@ -106,6 +106,10 @@ struct AppArgs {
     /// Do not autosave.
     #[arg(long)]
     no_autosave: bool,
+    /// What draws the preview: auto (the wgpu preview on a hardware adapter, the CPU PRT frame where
+    /// the only adapter is a software rasteriser such as llvmpipe), cpu or gpu.
+    #[arg(long, default_value = "auto")]
+    preview: glint::app::PreviewChoice,
 }
 
 #[derive(clap::Args)]
@@ -551,6 +555,7 @@ fn default_job() -> Result<()> {
         autosave: Some(PathBuf::from(".glint-autosave.json")),
         session: None,
         replay: Vec::new(),
+        preview: glint::app::PreviewChoice::Auto,
     };
     match glint::app::run_window(opts) {
         Ok(()) => Ok(()),
@@ -589,6 +594,7 @@ fn app(args: &AppArgs) -> Result<()> {
         autosave: (!args.no_autosave && args.screenshot.is_none()).then(|| args.autosave.clone()),
         session: args.session.clone(),
         replay,
+        preview: args.preview,
     };
     match &args.screenshot {
         Some(out) => {

@@ -16,12 +16,17 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// The sample stroke along the bunny's back (samples/strokes/bunny-highlight.json), view pixels.
-const STROKE: [[f64; 2]; 4] = [[300.0, 228.0], [350.0, 234.0], [395.0, 256.0], [414.0, 290.0]];
-const RADIUS_PX: f64 = 22.0;
+/// A short stroke on the bunny's flank (default view, view pixels) where the studio's brightest light
+/// reflects: the spot a lobe at h = n lights most (found by rendering that lobe alone, `glint render`).
+/// A highlight painted where a light can reflect is one an isotropic BRDF can make without lighting
+/// up the rest; one painted where no light reflects (the sample stroke across the back) can only be
+/// approached by broad lobes that brighten every pixel alike (measured with `glint fit`: far pixels
+/// rose 0.027 for 0.030 in the painted band).
+const STROKE: [[f64; 2]; 2] = [[409.0, 262.0], [418.0, 272.0]];
+const RADIUS_PX: f64 = 10.0;
 const KEEP_WEIGHT: f64 = 1.0;
-/// A highlight the lobes can make: about 4× the diffuse radiance there (the sample's 2.5 is 20×).
-const INTENSITY: f32 = 0.5;
+/// About 2.6× the diffuse radiance there.
+const INTENSITY: f32 = 0.6;
 
 fn gpu_or_skip() -> bool {
     match glint::gpu::GpuContext::headless() {
@@ -36,7 +41,7 @@ fn gpu_or_skip() -> bool {
 
 fn options() -> AppOptions {
     let samples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("samples");
-    AppOptions { scene: samples.join("bunny.glb"), env: samples.join("studio_1k.exr"), autosave: None, session: None, replay: Vec::new() }
+    AppOptions { scene: samples.join("bunny.glb"), env: samples.join("studio_1k.exr"), autosave: None, session: None, replay: Vec::new(), preview: Default::default() }
 }
 
 type AppHarness<'a> = Harness<'a, Option<GlintApp>>;
@@ -137,23 +142,24 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
     assert!(m.coefficients.iter().flatten().any(|c| *c > 0.0), "no specular lobe was fitted");
     let after: Arc<Image> = app(&h).preview_image().unwrap().clone();
 
-    let painted = |p: [f64; 2]| polyline_distance(p, &STROKE) < 0.5 * RADIUS_PX;
+    let painted = |p: [f64; 2]| polyline_distance(p, &STROKE) < RADIUS_PX;
     let far = |p: [f64; 2]| polyline_distance(p, &STROKE) > 6.0 * RADIUS_PX;
     let (lum_before, lum_after, n) = mean_luminance(&before, &after, painted);
     eprintln!("painted region ({n} px): mean luminance {lum_before:.4} → {lum_after:.4}");
     let (far_before, far_after, n_far) = mean_luminance(&before, &after, far);
     eprintln!("far pixels ({n_far} px): mean luminance {far_before:.4} → {far_after:.4}");
     assert!(n_far > 2000, "{n_far} far pixels");
-    assert!(n > 500, "{n} painted pixels");
+    assert!(n > 300, "{n} painted pixels");
     assert!(lum_after > 1.15 * lum_before, "painted region not brighter: {lum_before} → {lum_after}");
 
-    // Far pixels: the fitted isotropic lobes brighten every pixel whose half vectors meet the studio's
-    // lights, so pixels far from the stroke rise too — measured 0.028 against 0.030 in the painted
-    // region, the same material `glint fit` finds for these strokes (it is the fit, not the preview).
-    // The guard: the far rise stays below the painted rise (with 25 % slack for the drawn path).
+    // Far pixels change little: the fitted lobe also lights the few other spots where a light reflects
+    // at the same half-vector angle, which moves the mean of the far pixels by a small fraction of the
+    // painted rise.
     let rise_painted = lum_after - lum_before;
     let change_far = (far_after - far_before).abs();
-    assert!(change_far < 1.25 * rise_painted, "far pixels changed {change_far} vs the painted rise {rise_painted}");
+    eprintln!("far change / painted rise = {:.3}", change_far / rise_painted);
+    assert!(change_far < 0.2 * rise_painted, "far pixels changed {change_far} vs the painted rise {rise_painted}");
+    assert!(change_far < 0.1 * far_before, "far pixels changed {change_far} from {far_before}");
 
     // Ctrl+Z takes the stroke back: the preview returns to the diffuse frame.
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);

@@ -2,7 +2,10 @@
 //! that reuse everything a stroke does not change.
 //!
 //! Inputs: the scene, the environment, cuts as the bake delivers them (first the vertices the first
-//! view sees, then all), a [`Document`] per fit, a view per frame. Outputs: preview frames (linear
+//! view sees, then all), a [`Document`] per fit, a view per frame, and which renderer draws the
+//! preview ([`PreviewChoice`]: the wgpu preview on a hardware adapter, the CPU PRT frame where the
+//! only adapter is a software rasteriser, which is 40-60× slower than the CPU frame for the same
+//! picture). Outputs: preview frames (linear
 //! [`Image`]s with the environment behind the object), fitted [`Material`]s with their p(h) table and
 //! timings, exported files.
 //! Invariants: calls only the library's public stage functions (transfer, strokes, the per-channel
@@ -24,7 +27,7 @@ use crate::fit::run::camera_for;
 use crate::fit::strokes::{ViewSpec, targets};
 use crate::gpu::{GpuContext, GpuPreview};
 use crate::light::LightSums;
-use crate::render::{Image, PhTable, PrtSettings, table};
+use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, table};
 use crate::scene::{Camera, Scene};
 use crate::sphere::{DirectionSet, LightTree, LobeSet, srbf};
 use crate::transfer::{Transfer, TransferContext};
@@ -43,8 +46,40 @@ pub struct FitTimings {
     pub solve_secs: f64,
     /// The p(h) table and its upload.
     pub table_secs: f64,
-    /// The preview frame (GPU shade, raster, readback, background).
+    /// The preview frame (wgpu: shade, raster, readback; or the CPU PRT frame), background included.
     pub render_secs: f64,
+}
+
+/// Which renderer draws the preview frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PreviewChoice {
+    /// The wgpu preview on a hardware adapter; the CPU frame where the adapter is a software one
+    /// (wgpu's `DeviceType::Cpu`, e.g. Mesa's llvmpipe).
+    #[default]
+    Auto,
+    /// The CPU PRT frame (`render::Prt`, vertex shading, every core).
+    Cpu,
+    /// The wgpu preview, whatever the adapter.
+    Gpu,
+}
+
+impl std::str::FromStr for PreviewChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "cpu" => Ok(Self::Cpu),
+            "gpu" => Ok(Self::Gpu),
+            _ => Err(format!("the preview is auto, cpu or gpu, not {s:?}")),
+        }
+    }
+}
+
+/// The settings both preview renderers use: the mesh's own vertices are shaded (the wgpu preview's
+/// compute pass shades vertices; the CPU frame does the same so that the two show the same picture,
+/// `tests/gpu.rs`), over the default render partition.
+fn preview_settings() -> PrtSettings {
+    PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() }
 }
 
 /// A finished fit.
@@ -74,6 +109,10 @@ pub struct Engine {
     tree: LightTree,
     cuts: Option<Cuts>,
     ctx: GpuContext,
+    /// Whether frames come from the wgpu preview (else from the CPU PRT frame).
+    use_gpu: bool,
+    /// Why, in words (shown in the side panel).
+    preview_reason: String,
     gpu: Option<GpuPreview>,
     light: Option<(f64, LightSums)>,
     lobes: Option<LobeCache>,
@@ -86,10 +125,29 @@ pub struct Engine {
 
 impl Engine {
     /// An engine for a scene whose bake decided `resolution` and `anisotropic`; no cuts yet.
-    pub fn new(scene: Arc<Scene>, env: EnvMap, env_path: PathBuf, tangents: Option<Vec<Vec4>>, anisotropic: bool, resolution: usize) -> Result<Self, AppError> {
+    pub fn new(
+        scene: Arc<Scene>,
+        env: EnvMap,
+        env_path: PathBuf,
+        tangents: Option<Vec<Vec4>>,
+        anisotropic: bool,
+        resolution: usize,
+        preview: PreviewChoice,
+    ) -> Result<Self, AppError> {
         let set = DirectionSet::cube(resolution).map_err(|e| AppError::Stage(e.to_string()))?;
         let tree = LightTree::build(&set);
         let ctx = GpuContext::headless()?;
+        let software = ctx.info.device_type == wgpu::DeviceType::Cpu;
+        let threads = rayon::current_num_threads();
+        let (use_gpu, preview_reason) = match preview {
+            PreviewChoice::Gpu => (true, format!("wgpu on {} (chosen with --preview gpu)", ctx.describe())),
+            PreviewChoice::Cpu => (false, format!("the CPU PRT frame on {threads} threads (chosen with --preview cpu)")),
+            PreviewChoice::Auto if software => (
+                false,
+                format!("the CPU PRT frame on {threads} threads: the only adapter, {}, is a software rasteriser", ctx.describe()),
+            ),
+            PreviewChoice::Auto => (true, format!("wgpu on {}", ctx.describe())),
+        };
         Ok(Self {
             scene,
             env,
@@ -100,6 +158,8 @@ impl Engine {
             tree,
             cuts: None,
             ctx,
+            use_gpu,
+            preview_reason,
             gpu: None,
             light: None,
             lobes: None,
@@ -110,9 +170,14 @@ impl Engine {
         })
     }
 
-    /// The GPU the preview runs on, in words.
+    /// What draws the preview and why, in words.
     pub fn device(&self) -> String {
-        self.ctx.describe()
+        self.preview_reason.clone()
+    }
+
+    /// Whether preview frames come from the wgpu preview (else from the CPU PRT frame).
+    pub fn uses_gpu(&self) -> bool {
+        self.use_gpu
     }
 
     pub fn scene(&self) -> &Scene {
@@ -129,17 +194,19 @@ impl Engine {
     }
 
     /// New cuts from the bake (partial: unbaked vertices have empty cuts and render black). Rebuilds
-    /// the GPU buffers and keeps the cached transfers (a baked vertex's cut never changes).
+    /// the GPU buffers (when the GPU draws the preview) and keeps the cached transfers (a baked
+    /// vertex's cut never changes).
     pub fn set_cuts(&mut self, cuts: Cuts) -> Result<(), AppError> {
-        let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
-        let mut gpu = GpuPreview::new(&self.ctx, &self.scene.mesh, &cuts, &self.tree, self.tangents.as_deref(), settings)?;
-        if let Some((_, light)) = &self.light {
-            gpu.set_light(light, &self.tree)?;
+        if self.use_gpu {
+            let mut gpu = GpuPreview::new(&self.ctx, &self.scene.mesh, &cuts, &self.tree, self.tangents.as_deref(), preview_settings())?;
+            if let Some((_, light)) = &self.light {
+                gpu.set_light(light, &self.tree)?;
+            }
+            if let Some((rho_d, f0, t)) = &self.shown {
+                gpu.set_material(*rho_d, *f0, t.as_ref())?;
+            }
+            self.gpu = Some(gpu);
         }
-        if let Some((rho_d, f0, t)) = &self.shown {
-            gpu.set_material(*rho_d, *f0, t.as_ref())?;
-        }
-        self.gpu = Some(gpu);
         self.cuts = Some(cuts);
         Ok(())
     }
@@ -222,16 +289,29 @@ impl Engine {
         Ok(start.elapsed().as_secs_f64())
     }
 
-    /// A preview frame of the current material in a view.
+    /// A preview frame of the current material in a view (the wgpu preview or the CPU PRT frame, see
+    /// [`PreviewChoice`]; both shade the mesh's vertices and interpolate).
     pub fn render(&mut self, view: &ViewSpec, size: [u32; 2], rotation_deg: f64) -> Result<Image, AppError> {
         self.ensure_light(rotation_deg)?;
         let camera = self.camera(view, size)?;
-        let gpu = self.gpu.as_mut().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
-        if self.shown.is_none() {
-            gpu.set_material([0.5; 3], 0.04, None)?;
-            self.shown = Some(([0.5; 3], 0.04, None));
-        }
-        let mut image = gpu.render(&camera, size[0], size[1])?;
+        let mut image = if self.use_gpu {
+            let gpu = self.gpu.as_mut().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+            if self.shown.is_none() {
+                gpu.set_material([0.5; 3], 0.04, None)?;
+                self.shown = Some(([0.5; 3], 0.04, None));
+            }
+            gpu.render(&camera, size[0], size[1])?
+        } else {
+            let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+            let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a frame"))?;
+            let (rho_d, f0, table) = self.shown.get_or_insert(([0.5; 3], 0.04, None));
+            let specular = match table.as_ref() {
+                Some(t) => Specular::Table(t),
+                None => Specular::None,
+            };
+            let prt = Prt::new(&self.scene.mesh, cuts, &self.tree, self.tangents.as_deref(), preview_settings());
+            prt.render(light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
+        };
         image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
         Ok(image)
     }

@@ -19,6 +19,7 @@ pub mod state;
 pub mod ui;
 pub mod worker;
 
+pub use engine::PreviewChoice;
 pub use ui::{AppOptions, GlintApp};
 pub use screenshot::{ReplayReport, replay_screenshot};
 

@@ -9,7 +9,7 @@
 //! from the widget rectangle the image is drawn in; every settled edit (stroke released, slider let
 //! go, undo, redo, session loaded) is one history step and one fit.
 
-use super::engine::FitResult;
+use super::engine::{FitResult, PreviewChoice};
 use super::state::{BrushMode, Document, History, Session};
 use super::worker::{Command, Event, Worker};
 use crate::fit::strokes::{ViewSpec, ViewStrokes};
@@ -30,6 +30,8 @@ pub struct AppOptions {
     pub session: Option<PathBuf>,
     /// Strokes to replay (and fit) once the first view's fit is prepared (`--replay`).
     pub replay: Vec<ViewStrokes>,
+    /// Which renderer draws the preview (`--preview`).
+    pub preview: PreviewChoice,
 }
 
 /// What the worker said about the inputs.
@@ -98,7 +100,7 @@ impl GlintApp {
     /// Starts the worker (load, bake) and returns at once.
     pub fn new(opts: AppOptions, ctx: &egui::Context) -> Self {
         let repaint = ctx.clone();
-        let worker = Worker::start(opts.scene.clone(), opts.env.clone(), Arc::new(move || repaint.request_repaint()));
+        let worker = Worker::start(opts.scene.clone(), opts.env.clone(), opts.preview, Arc::new(move || repaint.request_repaint()));
         let pending_session = opts.session.as_ref().and_then(|p| match std::fs::read_to_string(p).map_err(|e| e.to_string()).and_then(|t| Session::parse(&t)) {
             Ok(s) => Some(s),
             Err(e) => {
