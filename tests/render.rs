@@ -109,21 +109,21 @@ fn compare(mesh: &str, w: u32, h: u32) -> Errors {
 }
 
 // The goal is PRT vs Monte Carlo within 2 %. It is NOT met on these coarse meshes (bunny
-// 1,839 vertices, teapot 529; measured 3.8 % and 13 % with the decided 5.625° cells): visibility is
+// 1,839 vertices, teapot 529; measured 3.2 % and 12.8 % with the decided 5.625° cells): visibility is
 // baked per vertex, so shadow edges of the studio's small lights fall between vertices; the per-pixel transfer render, which shares the cuts, is as far from
 // the reference. The bounds below are the measured values plus margin, so a regression fails.
 #[test]
 fn prt_against_monte_carlo_on_the_bunny() {
     let e = compare("bunny", 160, 120);
     assert!(e.prt_vs_transfer <= 0.03, "PRT vs per-pixel transfer {}", e.prt_vs_transfer);
-    assert!(e.prt_vs_mc <= 0.045, "PRT vs Monte Carlo {}", e.prt_vs_mc);
+    assert!(e.prt_vs_mc <= 0.04, "PRT vs Monte Carlo {}", e.prt_vs_mc);
 }
 
 #[test]
 fn prt_against_monte_carlo_on_the_teapot() {
     let e = compare("teapot", 160, 120);
     assert!(e.prt_vs_transfer <= 0.05, "PRT vs per-pixel transfer {}", e.prt_vs_transfer);
-    assert!(e.prt_vs_mc <= 0.15, "PRT vs Monte Carlo {}", e.prt_vs_mc);
+    assert!(e.prt_vs_mc <= 0.14, "PRT vs Monte Carlo {}", e.prt_vs_mc);
 }
 
 /// Developer tool (not run by CI): `MESH=teapot cargo test --test render diagnose -- --ignored --nocapture`

@@ -4,8 +4,9 @@
 //! it estimates B = ∫ L(ωi) V(x, ωi) f_r(ωi, ωo) max(ωi·n, 0) dωi with
 //! - L: the environment map itself, read as constant over each texel ([`EnvMap::lookup_nearest`],
 //!   rotated), not the direction set;
-//! - V: a ray per sample against the mesh (obvhs CWBVH any-hit), from the point offset along its
-//!   shading normal by the bake's offset;
+//! - V: a ray per sample against the mesh (obvhs CWBVH any-hit), from the point lifted onto the
+//!   smooth surface its vertex normals describe (the shadow-terminator fix of Hanika 2021, which
+//!   Blender's Cycles also applies) and offset along its shading normal by the bake's offset;
 //! - f_r: the exact lobe sum (closed form, no table), ρd/π + p(h) s(ωi, ωo);
 //! - two strategies combined by multiple importance sampling (power heuristic): the environment
 //!   (texels ∝ luminance × sin θ, uniform within the texel, mixed with 10 % uniform directions: L/pdf
@@ -283,7 +284,11 @@ pub fn render_reference(
             };
             let wo = frame.to_local((eye - position).try_normalize().unwrap_or(normal));
             let brdf = if wo.z > 0.0 { &full } else { &diffuse_only };
-            let origin = position + normal * ray_offset;
+            // Rays leave from the smooth surface the normals describe, not from the flat facet: from
+            // the facet, directions above the shading normal's horizon but below the facet's plane
+            // hit the facet itself, which darkened coarse meshes in stripes along their facets
+            // (the shadow terminator; the bake's rays leave from vertices, which lie on that surface).
+            let origin = smooth_surface_point(mesh, tri, b, position) + normal * ray_offset;
             let o = Vec3A::new(origin.x as f32, origin.y as f32, origin.z as f32);
             let visible = |d: DVec3| !tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32));
             let mut rng = Rng::new(seed ^ ((f.y as u64) << 32 | f.x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
@@ -368,4 +373,20 @@ mod tests {
             }
         }
     }
+}
+
+/// The point on the smooth surface the vertex normals describe, above a point of a flat triangle
+/// (Hanika, "Hacking the shadow terminator", Ray Tracing Gems II, ch. 4): the point is projected onto
+/// each corner's tangent plane where it lies below it, and the projections are blended by the
+/// barycentrics. Where the mesh is convex this lifts the point off the facet, so rays above the
+/// shading normal's horizon do not hit the facet they start from; where it is concave it stays.
+fn smooth_surface_point(mesh: &Mesh, tri: [u32; 3], b: [f64; 3], position: DVec3) -> DVec3 {
+    let mut lifted = position;
+    for i in 0..3 {
+        let p = mesh.positions[tri[i] as usize].as_dvec3();
+        let n = mesh.normals[tri[i] as usize].as_dvec3().try_normalize().unwrap_or(DVec3::ZERO);
+        let below = (position - p).dot(n).min(0.0);
+        lifted -= b[i] * below * n;
+    }
+    lifted
 }
