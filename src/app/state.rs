@@ -21,8 +21,8 @@ pub enum BrushMode {
     Paint,
     /// Target = S × the value before the stroke.
     Scale,
-    /// A scale stroke with S = 1 at full weight: pins the pixels to what they show before the stroke
-    /// (the diffuse rendering unless painted earlier), so the fit puts no highlight there.
+    /// Target = the diffuse rendering (the stroke format's `erase`): no highlight there, even where an
+    /// earlier stroke painted one.
     Erase,
 }
 
@@ -54,7 +54,7 @@ impl Brush {
         let (mode, scale) = match self.mode {
             BrushMode::Paint => (Mode::Paint, 1.0),
             BrushMode::Scale => (Mode::Scale, self.scale),
-            BrushMode::Erase => (Mode::Scale, 1.0),
+            BrushMode::Erase => (Mode::Erase, 1.0),
         };
         let color = self.color.map(|c| c as f64 * self.intensity as f64);
         Stroke { points, mode, color, scale, radius: self.radius_px, kappa: self.kappa_per_px }
@@ -299,7 +299,7 @@ mod tests {
         assert!((s.color[0] + 2.0).abs() < 1e-6, "negative HDR paint is kept: {:?}", s.color);
         b.mode = BrushMode::Erase;
         let s = b.stroke(vec![[0.0, 0.0]]);
-        assert_eq!((s.mode, s.scale), (Mode::Scale, 1.0));
+        assert_eq!(s.mode, Mode::Erase);
         b.mode = BrushMode::Scale;
         assert_eq!(b.stroke(vec![[0.0, 0.0]]).scale, b.scale);
     }

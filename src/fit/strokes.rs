@@ -3,14 +3,16 @@
 //! File (JSON; schema in `src/fit/strokes.schema.json`): one object, or a list of them (one per view;
 //! multi-view fitting puts all their pixels into one solve):
 //! `{"view": <camera name | camera index | {"orbit": [az°, el°, dist]}>, "image_size": [w, h],
-//!   "keep_weight": 0.1, "strokes": [{"points": [[x, y], ...], "mode": "paint" | "scale",
+//!   "keep_weight": 0.1, "strokes": [{"points": [[x, y], ...], "mode": "paint" | "scale" | "erase",
 //!   "color": [r, g, b], "scale": S, "radius": D, "kappa": κ}]}`.
 //! Points are pixels of the full-resolution view (`image_size`), origin top-left; `color` is linear
 //! radiance and may be negative (it then removes a highlight).
 //!
 //! Brush: for a pixel at distance d (full-resolution pixels) from the stroke's polyline,
-//! w = exp(−κ d) if d ≤ D else 0, and the target becomes B = w C + (1 − w) B' (paint) or
-//! B = w S B' + (1 − w) B' (scale), B' the value before the stroke; strokes apply in file order.
+//! w = exp(−κ d) if d ≤ D else 0, and the target becomes B = w C + (1 − w) B' (paint),
+//! B = w S B' + (1 − w) B' (scale) or B = w D + (1 − w) B' (erase: D is the diffuse rendering, so an
+//! erase stroke removes a highlight painted by an earlier stroke too), B' the value before the stroke;
+//! strokes apply in file order.
 //! The least-squares weight of a pixel is keep_weight + (1 − keep_weight) · max over strokes of w: painted
 //! pixels count fully, unpainted ones keep their current value with the user's keep weight (the paper's
 //! remedy for unpainted regions changing).
@@ -32,12 +34,13 @@ pub enum ViewSpec {
     Orbit { orbit: [f32; 3] },
 }
 
-/// Paint replaces, scale multiplies.
+/// Paint replaces, scale multiplies, erase returns to the diffuse rendering (no highlight).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     Paint,
     Scale,
+    Erase,
 }
 
 fn default_color() -> [f64; 3] {
@@ -176,11 +179,13 @@ impl Stroke {
         if d <= self.radius { (-self.kappa * d).exp() } else { 0.0 }
     }
 
-    /// Applies the stroke to the value before it, B', at weight w.
-    pub fn apply(&self, w: f64, before: [f64; 3]) -> [f64; 3] {
+    /// Applies the stroke to the value before it, B', at weight w; `diffuse` is the pixel's diffuse
+    /// rendering (what an erase stroke returns to).
+    pub fn apply(&self, w: f64, before: [f64; 3], diffuse: [f64; 3]) -> [f64; 3] {
         std::array::from_fn(|c| match self.mode {
             Mode::Paint => w * self.color[c] + (1.0 - w) * before[c],
             Mode::Scale => w * self.scale * before[c] + (1.0 - w) * before[c],
+            Mode::Erase => w * diffuse[c] + (1.0 - w) * before[c],
         })
     }
 }
@@ -199,7 +204,8 @@ pub struct Targets {
 }
 
 /// Targets for `pixels` (fit-resolution pixel coordinates, of a fit image of `fit_size`) whose current
-/// radiance is `current`, under the strokes of `view`.
+/// radiance is `current` (the diffuse rendering, c = 0: what strokes paint over and erase returns to),
+/// under the strokes of `view`.
 pub fn targets(view: &ViewStrokes, pixels: &[(u32, u32)], fit_size: (u32, u32), current: &[[f64; 3]]) -> Targets {
     let sx = view.image_size[0] as f64 / fit_size.0.max(1) as f64;
     let sy = view.image_size[1] as f64 / fit_size.1.max(1) as f64;
@@ -212,7 +218,7 @@ pub fn targets(view: &ViewStrokes, pixels: &[(u32, u32)], fit_size: (u32, u32), 
             let w = s.weight(p);
             if w > 0.0 {
                 if let Some(t) = target.get_mut(i) {
-                    *t = s.apply(w, *t);
+                    *t = s.apply(w, *t, current[i]);
                 }
                 max_w[i] = max_w[i].max(w);
                 hits[k] += 1;
@@ -268,11 +274,11 @@ mod tests {
     fn brush_follows_eq_23() {
         let s = &parse(ONE).unwrap()[0].strokes[0];
         // On the segment: d = 0, w = 1, B = C.
-        assert_eq!(s.apply(s.weight([150.0, 100.0]), [0.5; 3]), [2.0; 3]);
+        assert_eq!(s.apply(s.weight([150.0, 100.0]), [0.5; 3], [0.5; 3]), [2.0; 3]);
         // 5 px away: w = exp(-0.5).
         let w = s.weight([150.0, 105.0]);
         assert!((w - (-0.5f64).exp()).abs() < 1e-15);
-        let b = s.apply(w, [0.5; 3]);
+        let b = s.apply(w, [0.5; 3], [0.5; 3]);
         assert!((b[0] - (w * 2.0 + (1.0 - w) * 0.5)).abs() < 1e-15);
         // Past the end cap, distance to the end point; beyond D, untouched.
         assert!((s.weight([203.0, 104.0]) - (-0.5f64).exp()).abs() < 1e-12);
@@ -281,11 +287,36 @@ mod tests {
         let mut sc = s.clone();
         sc.mode = Mode::Scale;
         sc.scale = 3.0;
-        assert_eq!(sc.apply(1.0, [0.5, 1.0, 0.0]), [1.5, 3.0, 0.0]);
+        assert_eq!(sc.apply(1.0, [0.5, 1.0, 0.0], [0.5, 1.0, 0.0]), [1.5, 3.0, 0.0]);
         // Negative colour removes a highlight (the target goes below the current value).
         let mut neg = s.clone();
         neg.color = [-1.0; 3];
-        assert!(neg.apply(0.5, [0.5; 3])[0] < 0.0);
+        assert!(neg.apply(0.5, [0.5; 3], [0.5; 3])[0] < 0.0);
+    }
+
+    #[test]
+    fn erase_returns_to_the_diffuse_rendering_even_over_an_earlier_highlight() {
+        // A paint stroke, then an erase stroke over the same segment: at full weight the target is the
+        // diffuse value again (a scale stroke with S = 1 would have kept the painted highlight).
+        let text = r#"{"view": "default", "image_size": [100, 100], "keep_weight": 0.1, "strokes": [
+            {"points": [[10, 10], [90, 10]], "mode": "paint", "color": [3, 3, 3], "radius": 8, "kappa": 0},
+            {"points": [[50, 10]], "mode": "erase", "radius": 4, "kappa": 0.1}]}"#;
+        let view = parse(text).unwrap().remove(0);
+        assert_eq!(view.strokes[1].mode, Mode::Erase);
+        // Fit size = image size, so pixel (x, y) samples (x + ½, y + ½): (49, 9) and (51, 9) lie under
+        // both strokes (erase weights exp(−0.1·√0.5) and exp(−0.1·√2.5)), (19, 9) under the paint only.
+        let pixels = [(49u32, 9u32), (19, 9), (51, 9)];
+        let diffuse = [[0.2, 0.3, 0.4]; 3];
+        let t = targets(&view, &pixels, (100, 100), &diffuse);
+        for (i, d) in [(0, 0.5f64.sqrt()), (2, 2.5f64.sqrt())] {
+            let w = (-0.1 * d).exp();
+            for c in 0..3 {
+                let want = w * diffuse[i][c] + (1.0 - w) * 3.0;
+                assert!((t.target[i][c] - want).abs() < 1e-12, "{:?} vs {want}", t.target[i]);
+            }
+        }
+        assert_eq!(t.target[1], [3.0; 3]);
+        assert_eq!(t.touched, 3);
     }
 
     #[test]
