@@ -648,9 +648,15 @@ mod tests {
         let material = Material::new(&lobes, 0.1, c.clone(), [0.2, 0.15, 0.1], 0.04, FitStats::default());
         let table = PhTable::build_unfiltered(&lobes, [&c[0], &c[1], &c[2]], 64);
         let fit = material_fallback(&material, &lobes, &table);
+        // Equal to 5e-5: since 2026-11-23 isotropic tables fill their texels from a polar profile
+        // (within 1e-5 of the peak of summing the lobes per texel), which moved the fit in the 6th digit.
         let before = PbrFallback { base_color: [0.2382434196974623, 0.16797935706230402, 0.09771529413501599], metallic: 0.24000000000000002, roughness: 0.6968888888888889, anisotropy: None, relative_error: 0.15241990084451684 };
-        assert_eq!(fit.fallback, before);
-        assert_eq!(fit.isotropic_relative_error, before.relative_error);
+        let close = |a: f64, b: f64| (a - b).abs() <= 5e-5 * b.abs();
+        assert!((0..3).all(|c| close(fit.fallback.base_color[c], before.base_color[c])), "{:?}", fit.fallback);
+        assert!(close(fit.fallback.metallic, before.metallic) && close(fit.fallback.roughness, before.roughness), "{:?}", fit.fallback);
+        assert!(fit.fallback.anisotropy.is_none());
+        assert!(close(fit.fallback.relative_error, before.relative_error), "{:?}", fit.fallback);
+        assert_eq!(fit.isotropic_relative_error, fit.fallback.relative_error);
 
         // A hemicube (Gaussian lobes) with weight only on the lobe at the normal: p depends on h·n only.
         let hemicube = LobeSet::new(LobeLayout::Hemicube { n: 7 }, 20.0).unwrap();

@@ -14,8 +14,8 @@
 //! leaf ranges in tree order). For each run the prefix sums give its power Σ Ω L, solid angle and moment
 //! Σ Ω d in O(1); V is the barycentric blend of the three vertices' V_k; Ṽ uses the pixel's
 //! interpolated normal, with the run's mean cosine exact (moment·n / Ω) when it lies above the horizon,
-//! and where it straddles it split by a walk down the tree into sub-ranges above (exact) and the leaves
-//! the horizon cuts (clipped by a linear rule, [`LightTree::split_by_horizon`]). The BRDF is evaluated
+//! and where it straddles it split by a walk down the tree into sub-ranges above (exact) and the nodes
+//! of ≤ 16 leaves the horizon cuts (clipped whole by a disc model, [`LightTree::split_by_horizon`]). The BRDF is evaluated
 //! at the run's mean direction; only lobes whose support (G > e^-14) can reach the half-vector are
 //! evaluated ([`LobeGrid`]).
 //!
@@ -233,7 +233,7 @@ impl<'a> TransferContext<'a> {
             // horizon (the shading node's corner cone settles most runs at once), else split by a walk
             // down the tree into sub-ranges above (their moments) and leaves astride (linear clip).
             let mut cos_mass = 0.0;
-            self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, &mut |lo, hi, clipped| {
+            self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, crate::sphere::light_tree::COARSE_HORIZON_LEAVES, &mut |lo, hi, clipped| {
                 cos_mass += match clipped {
                     None if (lo, hi) == (a, z) => moment.dot(normal),
                     None => light.moment(lo, hi).dot(normal),

@@ -66,7 +66,9 @@ fn compare(ctx: &GpuContext, mesh: &str) {
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     // Vertex shading on both sides: the GPU preview shades the mesh's vertices; the partition the
     // preview uses (gpu::MAX_PARTITION_DEG, narrower than the CPU frame's default).
-    let settings = PrtSettings { max_edge_px: 0.0, partition_deg: glint::gpu::MAX_PARTITION_DEG, ..PrtSettings::default() };
+    // The CPU frame set to evaluate what the shader evaluates: every leaf the horizon cuts clipped, p read
+    // from the 2D texels.
+    let settings = PrtSettings { max_edge_px: 0.0, partition_deg: glint::gpu::MAX_PARTITION_DEG, horizon_leaves: 0, texel_lookups: true, ..PrtSettings::default() };
     let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings);
     let mut gpu = GpuPreview::new(ctx, &scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings).unwrap();
     gpu.set_material(m.rho_d, m.f0, Some(&table)).unwrap();

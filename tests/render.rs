@@ -162,7 +162,7 @@ fn diagnose() {
         let es: Vec<f64> = std::env::var("ES").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
         for &pd in &pds {
             for &e in &es {
-                variants.push((format!("p{pd}e{e}"), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e }));
+                variants.push((format!("p{pd}e{e}"), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e, ..PrtSettings::default() }));
             }
         }
         for (label, settings) in variants {
@@ -296,7 +296,7 @@ fn profile_frame() {
     let coefficients = [co.as_slice(), co.as_slice(), co.as_slice()];
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e });
+    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e, ..PrtSettings::default() });
     let mut camera = c.scene.cameras[0].clone();
     camera.aspect = w as f32 / h as f32;
     let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
