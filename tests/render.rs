@@ -279,6 +279,39 @@ fn subdivision_study() {
     }
 }
 
+/// The cached frame (per-vertex light kept across views and materials) equals the direct frame: for
+/// new views and a new material from one cache, with vertex shading and with subdivided shading
+/// (whose interior points are shaded directly), on a mesh with and one without a tangent field.
+#[test]
+fn cached_frames_equal_direct_frames() {
+    for mesh in ["bunny", "teapot"] {
+        let c = case(mesh, "studio_512");
+        let m = fitted(&c);
+        let lobes = m.lobes().unwrap();
+        let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
+        let co = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+        let table = PhTable::build(&lobes, co, default_resolution(lobes.lambda()));
+        let halved: Vec<Vec<f64>> = m.coefficients.iter().map(|ch| ch.iter().map(|x| 0.5 * x).collect()).collect();
+        let table2 = PhTable::build(&lobes, [&halved[0], &halved[1], &halved[2]], default_resolution(lobes.lambda()));
+        for max_edge_px in [0.0, 2.0] {
+            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: 16.0, max_edge_px, ..PrtSettings::default() });
+            let mut cache = glint::render::VertexLight::default();
+            let cameras = [c.scene.cameras[0].clone(), glint::scene::orbit_camera(&c.scene.bounds, 70.0, 25.0, 0.0, 160, 120)];
+            for (k, camera) in cameras.iter().enumerate() {
+                for (t, rho_d) in [(&table, m.rho_d), (&table2, [0.3, 0.4, 0.5])] {
+                    let shading = Shading { rho_d, f0: m.f0, specular: Specular::Table(t) };
+                    let direct = prt.render(&light, camera, 160, 120, &shading);
+                    let cached = prt.render_cached(&mut cache, &light, camera, 160, 120, &shading);
+                    let e = cached.relative_rmse(&direct).unwrap();
+                    assert!(e < 1e-6, "{mesh}, edge {max_edge_px}, view {k}: cached vs direct {e}");
+                    assert_eq!(cached.covered, direct.covered);
+                }
+                assert!(cache.cached_vertices() > 0, "{mesh}: the cache was filled");
+            }
+        }
+    }
+}
+
 /// Developer tool (not run by CI): renders one frame REPS times for profiling, e.g.
 /// `MESH=bunny PD=4 E=1 REPS=5 cargo test --test render profile_frame -- --ignored --nocapture`.
 #[test]

@@ -27,7 +27,7 @@ use crate::fit::run::camera_for;
 use crate::fit::strokes::{ViewSpec, targets};
 use crate::gpu::{GpuContext, GpuPreview};
 use crate::light::LightSums;
-use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, table};
+use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, VertexLight, table};
 use crate::scene::{Camera, Scene};
 use crate::sphere::{DirectionSet, LightTree, LobeSet, srbf};
 use crate::transfer::{Transfer, TransferContext};
@@ -121,6 +121,9 @@ pub struct Engine {
     /// Why, in words (shown in the side panel).
     preview_reason: String,
     gpu: Option<GpuPreview>,
+    /// The CPU preview's per-vertex light for the current rotation and cuts (frames after a new view
+    /// or a new fit evaluate only the BRDF); emptied when the light or the cuts change.
+    vertex_light: VertexLight,
     light: Option<(f64, LightSums)>,
     lobes: Option<LobeCache>,
     transfers: HashMap<String, Transfer>,
@@ -168,6 +171,7 @@ impl Engine {
             use_gpu,
             preview_reason,
             gpu: None,
+            vertex_light: VertexLight::default(),
             light: None,
             lobes: None,
             transfers: HashMap::new(),
@@ -215,6 +219,7 @@ impl Engine {
             self.gpu = Some(gpu);
         }
         self.cuts = Some(cuts);
+        self.vertex_light = VertexLight::default();
         Ok(())
     }
 
@@ -223,6 +228,7 @@ impl Engine {
         self.env = crate::env::load(path).map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;
         self.env_path = path.to_path_buf();
         self.light = None;
+        self.vertex_light = VertexLight::default();
         self.transfers.clear();
         Ok(())
     }
@@ -236,6 +242,7 @@ impl Engine {
         if let Some(gpu) = &mut self.gpu {
             gpu.set_light(&light, &self.tree)?;
         }
+        self.vertex_light = VertexLight::default();
         self.light = Some((rotation, light));
         Ok(())
     }
@@ -317,7 +324,7 @@ impl Engine {
                 None => Specular::None,
             };
             let prt = Prt::new(&self.scene.mesh, cuts, &self.tree, self.tangents.as_deref(), preview_settings(false));
-            prt.render(light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
+            prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
         };
         image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
         Ok(image)

@@ -17,6 +17,6 @@ pub mod reference;
 pub mod table;
 
 pub use image::{Image, ImageError};
-pub use prt::{Prt, PrtSettings, Shading, Specular};
+pub use prt::{Prt, PrtSettings, Shading, Specular, VertexLight};
 pub use reference::{ExactMaterial, render_reference};
 pub use table::PhTable;

@@ -112,6 +112,58 @@ pub struct ShadingPoint {
     pub bary: [f32; 3],
 }
 
+impl ShadingPoint {
+    /// The mesh vertex this point is, if it is one (all weight on one corner).
+    #[inline]
+    pub fn as_vertex(&self) -> Option<u32> {
+        let c = self.corners;
+        if c[0] == c[1] && c[1] == c[2] {
+            return Some(c[0]);
+        }
+        (0..3).find(|&i| self.bary[i] >= 1.0).map(|i| c[i])
+    }
+}
+
+/// One cached run: V · ∫ L max(ω·n, 0) dω (RGB), the unit direction its light comes from, its spread.
+#[derive(Debug, Clone, Copy)]
+struct CachedRun {
+    vis_cos_power: [f32; 3],
+    dir: [f32; 3],
+    v_omega: f32,
+}
+
+#[derive(Debug, Clone, Default)]
+struct CachedVertex {
+    irradiance: [f64; 3],
+    runs: Vec<CachedRun>,
+}
+
+/// The view- and material-independent part of eq. 22 at mesh vertices for one light and one set of
+/// cuts ([`Prt::render_cached`]): per vertex its irradiance and, per run, V·∫L max(cos, 0), the light's
+/// direction and spread (28 bytes a run). A new view or a new material then costs the BRDF per run
+/// only; a rotated light or new cuts need a new cache. Filled lazily, for the vertices frames shade.
+#[derive(Debug, Clone, Default)]
+pub struct VertexLight {
+    vertices: Vec<Option<CachedVertex>>,
+}
+
+impl VertexLight {
+    /// An empty cache for a mesh of `vertices` vertices.
+    pub fn new(vertices: usize) -> Self {
+        Self { vertices: vec![None; vertices] }
+    }
+
+    /// Vertices cached so far.
+    pub fn cached_vertices(&self) -> usize {
+        self.vertices.iter().filter(|v| v.is_some()).count()
+    }
+
+    /// Bytes held (runs and irradiance).
+    pub fn bytes(&self) -> usize {
+        self.vertices.iter().flatten().map(|v| 24 + v.runs.len() * std::mem::size_of::<CachedRun>()).sum()
+    }
+}
+
 /// The visible triangles of a view, subdivided `subdivision` times per edge, with their shading points.
 #[derive(Debug, Clone, Default)]
 pub struct ShadingMesh {
@@ -274,9 +326,9 @@ impl<'a> Prt<'a> {
         }
     }
 
-    /// Outgoing radiance at a shading point seen from `eye`.
-    pub fn shade_point(&self, point: &ShadingPoint, light: &LightSums, eye: DVec3, shading: &Shading) -> [f64; 3] {
-        // Distinct corners with positive weight (a vertex point has one).
+    /// The point's distinct corners with positive weight (a vertex point has one), its position,
+    /// normal and shading frame; `None` for a degenerate point.
+    fn point_geometry(&self, point: &ShadingPoint) -> Option<([(u32, f64); 3], usize, DVec3, DVec3, Frame)> {
         let mut corners: [(u32, f64); 3] = [(0, 0.0); 3];
         let mut count = 0;
         for i in 0..3 {
@@ -291,26 +343,32 @@ impl<'a> Prt<'a> {
                 count += 1;
             }
         }
-        let corners = &corners[..count];
-        if corners.is_empty() {
-            return [0.0; 3];
+        if count == 0 {
+            return None;
         }
-        let position: DVec3 = corners.iter().map(|&(v, b)| self.mesh.positions[v as usize].as_dvec3() * b).sum();
-        let Some(n) = corners.iter().map(|&(v, b)| self.mesh.normals[v as usize].as_dvec3() * b).sum::<DVec3>().try_normalize() else { return [0.0; 3] };
+        let position: DVec3 = corners[..count].iter().map(|&(v, b)| self.mesh.positions[v as usize].as_dvec3() * b).sum();
+        let n = corners[..count].iter().map(|&(v, b)| self.mesh.normals[v as usize].as_dvec3() * b).sum::<DVec3>().try_normalize()?;
         let frame = match self.tangents {
             Some(t) => {
-                let tw: Vec4 = corners.iter().map(|&(v, b)| t[v as usize] * b as f32).sum();
+                let tw: Vec4 = corners[..count].iter().map(|&(v, b)| t[v as usize] * b as f32).sum();
                 Frame::from_normal_tangent(n, tw.truncate().as_dvec3(), if tw.w < 0.0 { -1.0 } else { 1.0 })
             }
             None => Frame::from_normal(n),
         };
-        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(n));
+        Some((corners, count, position, n, frame))
+    }
+
+    /// The view- and material-independent part of eq. 22 per run at a point with these corners and
+    /// normal: `f(V · ∫_run L max(ω·n, 0) dω (RGB), the run's luminance-weighted moment, its spread
+    /// v_ω = 1 − |moment| / power)` for every run with light above the horizon (v_ω only when
+    /// `spreads`, else 0).
+    #[inline]
+    fn for_each_lit_run(&self, corners: &[(u32, f64)], n: DVec3, light: &LightSums, spreads: bool, mut f: impl FnMut([f64; 3], DVec3, f64)) {
         let lists: [&[Span]; 3] = std::array::from_fn(|i| corners.get(i).map_or(&[][..], |&(v, _)| self.vertex_spans(v)));
         let weights: [f64; 3] = std::array::from_fn(|i| corners.get(i).map_or(0.0, |c| c.1));
-        let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
+        let count = corners.len().min(3);
         let (ranges, nodes) = (&self.partition.ranges, &self.partition.nodes);
         let leaves = self.tree.leaf_count() as u32;
-        let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
         for_each_run(&lists[..count], &weights[..count], ranges, leaves, |a, z, vis, si| {
             let cone = self.tree.corner_cone(nodes[si] as usize);
             // A partition node wholly below the horizon contributes nothing.
@@ -322,7 +380,7 @@ impl<'a> Prt<'a> {
             let moment = light.radiant_moment(a, z);
             // ∫ L max(ω·n, 0) dω over the run: the radiant moment · n where the run lies wholly above
             // the horizon (exact up to per-leaf constant radiance), else split by walking down the tree
-            // (sub-ranges above by their moments, leaves astride the horizon by the linear clip).
+            // (sub-ranges above by their moments, nodes astride the horizon clipped).
             let mut cos_power = [0.0f64; 3];
             self.tree.split_by_horizon(nodes[si] as usize, a, z, n, self.settings.horizon_leaves, &mut |lo, hi, clipped| match clipped {
                 None => {
@@ -350,44 +408,135 @@ impl<'a> Prt<'a> {
             if cos_power.iter().all(|&x| x <= 0.0) {
                 return;
             }
-            for c in 0..3 {
-                e[c] += vis * cos_power[c];
-            }
-            if matches!(specular, Specular::None) {
-                return;
-            }
             let lum_moment = moment[0] * LUMINANCE[0] + moment[1] * LUMINANCE[1] + moment[2] * LUMINANCE[2];
-            let Some(dir) = lum_moment.try_normalize() else { return };
-            let wi = frame.to_local(dir);
-            if wi.z <= 0.0 {
-                return;
-            }
-            let Some(h) = (wi + wo).try_normalize() else { return };
-            let s = static_term(wi, wo, shading.f0);
-            if s <= 0.0 {
-                return;
-            }
-            let spread = if self.settings.prefilter {
+            let v_omega = if spreads {
                 let power = light.power(a, z);
                 let lum_power = power[0] * LUMINANCE[0] + power[1] * LUMINANCE[1] + power[2] * LUMINANCE[2];
-                if lum_power > 0.0 { (1.0 - lum_moment.length() / lum_power).max(0.0) / (4.0 * wo.dot(h).max(1e-3)) } else { 0.0 }
+                if lum_power > 0.0 { (1.0 - lum_moment.length() / lum_power).max(0.0) } else { 0.0 }
             } else {
                 0.0
             };
-            let p = match specular {
-                Specular::Table(t) => match (self.settings.texel_lookups, t.lookup_profile_filtered(h, spread)) {
-                    (false, Some(p)) => p,
-                    _ if spread > 0.0 => t.lookup_filtered(h, spread),
-                    _ => t.lookup(h),
-                },
-                Specular::Exact { lobes, coefficients } => filtered_exact(lobes, coefficients, h, spread),
-                Specular::None => [0.0; 3],
-            };
+            f(cos_power.map(|x| vis * x), lum_moment, v_omega);
+        });
+    }
+
+    /// s(ω, wo) and p̃(h) of one run whose light comes from `lum_moment`'s direction with spread
+    /// `v_omega`; `None` when that direction is below the horizon or undefined, or there is no
+    /// specular term.
+    #[inline]
+    fn run_specular(&self, lum_moment: DVec3, v_omega: f64, frame: &Frame, wo: DVec3, f0: f64, specular: Specular) -> Option<(f64, [f64; 3])> {
+        let dir = lum_moment.try_normalize()?;
+        let wi = frame.to_local(dir);
+        if wi.z <= 0.0 {
+            return None;
+        }
+        let h = (wi + wo).try_normalize()?;
+        let s = static_term(wi, wo, f0);
+        if s <= 0.0 {
+            return None;
+        }
+        let spread = if self.settings.prefilter { v_omega / (4.0 * wo.dot(h).max(1e-3)) } else { 0.0 };
+        let p = match specular {
+            Specular::Table(t) => match (self.settings.texel_lookups, t.lookup_profile_filtered(h, spread)) {
+                (false, Some(p)) => p,
+                _ if spread > 0.0 => t.lookup_filtered(h, spread),
+                _ => t.lookup(h),
+            },
+            Specular::Exact { lobes, coefficients } => filtered_exact(lobes, coefficients, h, spread),
+            Specular::None => return None,
+        };
+        Some((s, p))
+    }
+
+    /// Outgoing radiance at a shading point seen from `eye`.
+    pub fn shade_point(&self, point: &ShadingPoint, light: &LightSums, eye: DVec3, shading: &Shading) -> [f64; 3] {
+        let Some((corners, count, position, n, frame)) = self.point_geometry(point) else { return [0.0; 3] };
+        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(n));
+        // Where the shading normal faces away from the eye only the diffuse term is kept.
+        let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
+        let has_specular = !matches!(specular, Specular::None);
+        let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
+        self.for_each_lit_run(&corners[..count], n, light, has_specular && self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
             for c in 0..3 {
-                spec[c] += vis * cos_power[c] * s * p[c];
+                e[c] += vis_cos_power[c];
+            }
+            if has_specular && let Some((s, p)) = self.run_specular(lum_moment, v_omega, &frame, wo, shading.f0, specular) {
+                for c in 0..3 {
+                    spec[c] += vis_cos_power[c] * s * p[c];
+                }
             }
         });
         std::array::from_fn(|c| shading.rho_d[c] / std::f64::consts::PI * e[c] + spec[c])
+    }
+
+    /// Fills `cache` with the light of the vertex points among `points` that it lacks (in parallel).
+    pub fn fill_vertex_light(&self, cache: &mut VertexLight, points: &[ShadingPoint], light: &LightSums) {
+        if cache.vertices.len() != self.mesh.positions.len() {
+            *cache = VertexLight::new(self.mesh.positions.len());
+        }
+        let mut missing: Vec<u32> = points.iter().filter_map(|p| p.as_vertex()).filter(|&v| cache.vertices[v as usize].is_none()).collect();
+        missing.sort_unstable();
+        missing.dedup();
+        let filled: Vec<(u32, CachedVertex)> = missing
+            .par_iter()
+            .map(|&v| {
+                let point = ShadingPoint { corners: [v; 3], bary: [1.0, 0.0, 0.0] };
+                let mut entry = CachedVertex::default();
+                if let Some((corners, count, _, n, _)) = self.point_geometry(&point) {
+                    self.for_each_lit_run(&corners[..count], n, light, self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
+                        for c in 0..3 {
+                            entry.irradiance[c] += vis_cos_power[c];
+                        }
+                        if let Some(dir) = lum_moment.try_normalize() {
+                            entry.runs.push(CachedRun { vis_cos_power: vis_cos_power.map(|x| x as f32), dir: dir.as_vec3().to_array(), v_omega: v_omega as f32 });
+                        }
+                    });
+                }
+                (v, entry)
+            })
+            .collect();
+        for (v, entry) in filled {
+            cache.vertices[v as usize] = Some(entry);
+        }
+    }
+
+    /// Outgoing radiance at a vertex point from its cached light (`None` when the point is not a
+    /// vertex or the vertex is not cached): the BRDF per run only.
+    fn shade_cached(&self, point: &ShadingPoint, cache: &VertexLight, eye: DVec3, shading: &Shading) -> Option<[f64; 3]> {
+        let v = point.as_vertex()?;
+        let entry = cache.vertices.get(v as usize)?.as_ref()?;
+        let Some((_, _, position, n, frame)) = self.point_geometry(point) else { return Some([0.0; 3]) };
+        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(n));
+        let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
+        let mut spec = [0.0f64; 3];
+        if !matches!(specular, Specular::None) {
+            for run in &entry.runs {
+                let dir = glam::Vec3::from_array(run.dir).as_dvec3();
+                if let Some((s, p)) = self.run_specular(dir, run.v_omega as f64, &frame, wo, shading.f0, specular) {
+                    for c in 0..3 {
+                        spec[c] += run.vis_cos_power[c] as f64 * s * p[c];
+                    }
+                }
+            }
+        }
+        Some(std::array::from_fn(|c| shading.rho_d[c] / std::f64::consts::PI * entry.irradiance[c] + spec[c]))
+    }
+
+    /// A frame as [`Prt::render`], reading each shaded vertex's light from `cache` (filled first for
+    /// the vertices this view shades and the cache lacks). The cache holds for one light (rotation)
+    /// and these cuts: the caller keeps it across views and materials and drops it when either
+    /// changes. Points inside triangles (`max_edge_px > 0`) are shaded directly.
+    pub fn render_cached(&self, cache: &mut VertexLight, light: &LightSums, camera: &Camera, width: u32, height: u32, shading: &Shading) -> Image {
+        let sm = self.shading_mesh(camera, width, height);
+        self.fill_vertex_light(cache, &sm.points, light);
+        let eye = camera.eye().as_dvec3();
+        let cache = &*cache;
+        let radiance: Vec<[f64; 3]> = sm
+            .points
+            .par_iter()
+            .map(|p| self.shade_cached(p, cache, eye, shading).unwrap_or_else(|| self.shade_point(p, light, eye, shading)))
+            .collect();
+        interpolate(&sm, &radiance, camera, width, height)
     }
 
     /// Radiance of the given shading points (in parallel), in order.

@@ -167,7 +167,8 @@ pub fn level_position(lambda: f64, spread: f64) -> f64 {
     if !(spread > 0.0) {
         return 0.0;
     }
-    (1.0 + 2.0 * lambda * spread).log2() / LEVEL_STEP_OCTAVES
+    // f32's log2 is ample for a blend weight between levels (and a third of the f64 one's cost).
+    ((1.0 + 2.0 * lambda * spread) as f32).log2() as f64 / LEVEL_STEP_OCTAVES
 }
 
 /// The closed form the levels sample: Σ c_j (λ'/λ) G_j(h; λ'), λ' = λ/(1 + 2λ·spread), per channel.
