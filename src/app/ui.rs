@@ -84,6 +84,18 @@ pub struct GlintApp {
     pending_session: Option<Session>,
 }
 
+/// The environment maps (.exr, .hdr, any case) in a folder, sorted by name; empty when it cannot be
+/// read.
+pub fn env_maps_in(folder: &std::path::Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(folder) else { return Vec::new() };
+    let mut maps: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr")))
+        .collect();
+    maps.sort();
+    maps
+}
+
 /// Linear radiance → sRGB8 with the exposure and the ACES filmic fit the PNG writer uses.
 pub fn tone_map(image: &Image, exposure: f32) -> egui::ColorImage {
     let curve = |x: f32| {
@@ -567,6 +579,28 @@ impl GlintApp {
                 self.worker.send(Command::SetEnv(PathBuf::from(&self.env_path)));
             }
         });
+        // A picker over the maps beside the current one (listed only while the list is open).
+        let current = PathBuf::from(&self.env_path);
+        let folder = current.parent().map(|p| if p.as_os_str().is_empty() { std::path::Path::new(".") } else { p }).unwrap_or(std::path::Path::new(".")).to_path_buf();
+        let mut picked = None;
+        egui::ComboBox::from_label("maps in this folder")
+            .selected_text(current.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default())
+            .show_ui(ui, |ui| {
+                let maps = env_maps_in(&folder);
+                if maps.is_empty() {
+                    ui.label("no .exr or .hdr here");
+                }
+                for map in maps {
+                    let name = map.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+                    if ui.selectable_label(map.file_name() == current.file_name(), name).clicked() {
+                        picked = Some(map);
+                    }
+                }
+            });
+        if let Some(map) = picked {
+            self.env_path = map.display().to_string();
+            self.worker.send(Command::SetEnv(map));
+        }
         let rot = ui.add(egui::Slider::new(&mut self.doc.settings.env_rotation_deg, -180.0..=180.0).text("rotation (°)"));
         if rot.changed() {
             self.request_frame();
@@ -655,5 +689,23 @@ impl GlintApp {
 impl eframe::App for GlintApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_maps_in_lists_exr_and_hdr_files_sorted() {
+        let dir = std::env::temp_dir().join(format!("glint-env-maps-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub.exr")).unwrap();
+        for f in ["b.hdr", "a.EXR", "c.png", "notes.txt"] {
+            std::fs::write(dir.join(f), b"x").unwrap();
+        }
+        let names: Vec<String> = env_maps_in(&dir).iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, ["a.EXR", "b.hdr"], "files only (not the folder named sub.exr), .exr/.hdr in any case");
+        assert!(env_maps_in(&dir.join("missing")).is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
