@@ -16,8 +16,13 @@
 //! ℓ = 2·log2(1 + 2λ v_h) linearly. Level 0 is p itself; the exported table is level 0.
 //! [`filtered_exact`] is the closed form the levels sample, for tests.
 //!
+//! Isotropic lobe sets (rings: p depends on θ_h only) are evaluated exactly on a polar profile per
+//! level, p at q = √(1 − cos θ_h) on 8 R + 1 points, and the texels interpolate it; the profile is kept
+//! for the CPU frame's lookups ([`PhTable::lookup_profile_filtered`]: no 2D interpolation error).
+//!
 //! Invariants: texels ≥ 0 (coefficients are ≥ 0); levels shrink with the lobes' width, never below 16
-//! texels a side; building only evaluates lobes whose support (G ≥ e^−14) reaches a texel; no IO.
+//! texels a side; building only evaluates lobes whose support (G ≥ e^−14) reaches a texel (or, for
+//! isotropic sets, every active lobe at the profile's points); no IO.
 
 use crate::sphere::{LobeSet, hemi_oct, srbf};
 use glam::DVec3;
@@ -110,9 +115,9 @@ impl PhTable {
         self.levels.iter().map(|l| (l.resolution, l.texels.as_slice()))
     }
 
-    /// Bytes of all levels.
+    /// Bytes of all levels (texels and polar profiles).
     pub fn bytes(&self) -> usize {
-        self.levels.iter().map(|l| l.texels.len() * 12).sum()
+        self.levels.iter().map(|l| (l.texels.len() + l.profile.len()) * 12).sum()
     }
 
     /// p(h) at a local unit half-vector (bilinear on level 0).
