@@ -42,6 +42,11 @@ pub struct LobeGrid {
     size: usize,
     offsets: Vec<u32>,
     lobes: Vec<u32>,
+    /// Ring lobes only: per interval of the ring table ([`LobeSet::ring_position`]), the lobes whose
+    /// support meets its polar-angle band (offsets into `ring_lobes`), so that a run needs no octahedral
+    /// lookup once it has its ring position.
+    ring_offsets: Vec<u32>,
+    ring_lobes: Vec<u32>,
 }
 
 impl LobeGrid {
@@ -75,7 +80,33 @@ impl LobeGrid {
                 offsets.push(list.len() as u32);
             }
         }
-        Self { size, offsets, lobes: list }
+        let (mut ring_offsets, mut ring_lobes) = (Vec::new(), Vec::new());
+        if lobes.layout().is_isotropic() {
+            let r = LobeSet::RING_INTERVALS;
+            let theta = |t: f64| (1.0 - t * t).clamp(-1.0, 1.0).acos();
+            ring_offsets.push(0u32);
+            for k in 0..r {
+                // Interval k holds t = √(1 − cos θ) ∈ [k/r, (k+1)/r]: a band of polar angles.
+                let (lo, hi) = (theta(k as f64 / r as f64), theta((k + 1) as f64 / r as f64));
+                for (j, xi) in lobes.centres().iter().enumerate() {
+                    let tj = xi.z.clamp(-1.0, 1.0).acos();
+                    if tj >= lo - 1.05 * support && tj <= hi + 1.05 * support {
+                        ring_lobes.push(j as u32);
+                    }
+                }
+                ring_offsets.push(ring_lobes.len() as u32);
+            }
+        }
+        Self { size, offsets, lobes: list, ring_offsets, ring_lobes }
+    }
+
+    /// Candidate ring lobes for a ring-table interval (isotropic sets; empty otherwise).
+    #[inline]
+    pub fn ring_candidates(&self, interval: usize) -> &[u32] {
+        match (self.ring_offsets.get(interval), self.ring_offsets.get(interval + 1)) {
+            (Some(&a), Some(&b)) => &self.ring_lobes[a as usize..b as usize],
+            _ => &[],
+        }
     }
 
     /// Candidate lobes for a local unit half-vector (z ≥ 0 expected; z < 0 is folded up).
@@ -260,7 +291,11 @@ impl<'a> TransferContext<'a> {
             let ws = weight * s;
             let wp = [ws * power[0], ws * power[1], ws * power[2]];
             let ring = self.lobes.layout().is_isotropic().then(|| self.lobes.ring_position(h));
-            for &j in self.grid.candidates(h) {
+            let candidates = match ring {
+                Some((k, _)) => self.grid.ring_candidates(k),
+                None => self.grid.candidates(h),
+            };
+            for &j in candidates {
                 let j = j as usize;
                 let g = match ring {
                     Some(pos) => self.lobes.ring_value(j, pos),
@@ -272,5 +307,40 @@ impl<'a> TransferContext<'a> {
             }
         });
         (sample, acc.iter().map(|&x| x as f32).collect(), e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::LobeLayout;
+
+    #[test]
+    fn ring_candidates_hold_every_lobe_that_is_not_negligible() {
+        // At random half-vectors, every ring lobe above the cutoff (relative to its peak of 1) is among
+        // the candidates of the half-vector's ring interval, and the octahedral grid agrees on them.
+        let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+        let grid = LobeGrid::new(&lobes);
+        let mut rng = crate::math::Rng::new(17);
+        let cutoff = (-LOBE_CUTOFF_EXPONENT).exp();
+        let mut seen = 0;
+        for _ in 0..20_000 {
+            let h = rng.hemisphere_vector();
+            let pos = lobes.ring_position(h);
+            let ring = grid.ring_candidates(pos.0);
+            let octahedral = grid.candidates(h);
+            assert!(ring.len() <= lobes.len());
+            for j in 0..lobes.len() {
+                if lobes.ring_value(j, pos) > cutoff {
+                    seen += 1;
+                    assert!(ring.contains(&(j as u32)), "lobe {j} at h.z = {} missing from the ring candidates", h.z);
+                    assert!(octahedral.contains(&(j as u32)), "lobe {j} missing from the grid");
+                }
+            }
+        }
+        assert!(seen > 20_000, "{seen}");
+        // Anisotropic sets have no ring candidates.
+        let hemicube = LobeSet::new(LobeLayout::PAPER, lobes.lambda()).unwrap();
+        assert!(LobeGrid::new(&hemicube).ring_candidates(0).is_empty());
     }
 }

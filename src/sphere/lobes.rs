@@ -210,6 +210,9 @@ impl LobeSet {
         }
     }
 
+    /// Intervals of the ring table ([`Self::ring_position`]'s first value is below this).
+    pub const RING_INTERVALS: usize = RING_TABLE;
+
     /// For ring lobes: the table position of a local half-vector (h.z ≥ 0), shared by every lobe.
     #[inline]
     pub fn ring_position(&self, h: DVec3) -> (usize, f64) {
