@@ -166,6 +166,14 @@ impl Transfer {
     }
 }
 
+/// A shading node's solid angle, moment and radiant power under the current light.
+#[derive(Debug, Clone, Copy)]
+struct NodeLight {
+    omega: f64,
+    moment: DVec3,
+    power: [f64; 3],
+}
+
 /// What stays fixed across views and rotations: built once per bake and lobe set.
 pub struct TransferContext<'a> {
     pub mesh: &'a Mesh,
@@ -216,9 +224,19 @@ impl<'a> TransferContext<'a> {
         let spans: Vec<Option<Vec<Span>>> =
             used.par_iter().enumerate().map(|(v, &u)| u.then(|| self.spans(v))).collect();
         let j_count = self.lobes.len();
+        // Each shading node's light, read once per run instead of two prefix-sum entries per array
+        // (nearly every run is a whole shading node: cut nodes are much wider).
+        let node_light: Vec<NodeLight> = self
+            .shading
+            .iter()
+            .map(|&(a, z)| {
+                let (a, z) = (a as usize, z as usize);
+                NodeLight { omega: light.omega(a, z), moment: light.moment(a, z), power: light.power(a, z) }
+            })
+            .collect();
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            .map(|f| self.pixel(f, &spans, light, eye, f0, j_count))
+            .map(|f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
         let mut t = Vec::with_capacity(results.len() * 3 * j_count);
@@ -231,7 +249,8 @@ impl<'a> TransferContext<'a> {
         Transfer { width, height, pixels, lobes: j_count, t, irradiance, seconds: start.elapsed().as_secs_f64() }
     }
 
-    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, eye: DVec3, f0: f64, j_count: usize) -> (PixelSample, Vec<f32>, [f64; 3]) {
+    #[allow(clippy::too_many_arguments)]
+    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[NodeLight], eye: DVec3, f0: f64, j_count: usize) -> (PixelSample, Vec<f32>, [f64; 3]) {
         let tri = self.mesh.triangles[f.triangle as usize];
         let b = f.bary.map(|x| x as f64);
         let position: DVec3 = (0..3).map(|i| self.mesh.positions[tri[i] as usize].as_dvec3() * b[i]).sum();
@@ -257,8 +276,8 @@ impl<'a> TransferContext<'a> {
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
         let leaves = self.tree.leaf_count() as u32;
         for_each_run(&vertex_spans, &b, &self.shading, leaves, |a, z, vis, si| {
-            let omega = light.omega(a, z);
-            let moment = light.moment(a, z);
+            let whole = self.shading[si] == (a as u32, z as u32);
+            let (omega, moment) = if whole { (node_light[si].omega, node_light[si].moment) } else { (light.omega(a, z), light.moment(a, z)) };
             let Some(dir) = moment.try_normalize() else { return };
             // ∫ max(ω·n, 0) dω over the run: its moment · n (exact) when it lies wholly above the
             // horizon (the shading node's corner cone settles most runs at once), else split by a walk
@@ -274,7 +293,7 @@ impl<'a> TransferContext<'a> {
             if cos_mass <= 0.0 || omega <= 0.0 {
                 return;
             }
-            let power = light.power(a, z);
+            let power = if whole { node_light[si].power } else { light.power(a, z) };
             let weight = vis * cos_mass / omega;
             for c in 0..3 {
                 e[c] += weight * power[c];
