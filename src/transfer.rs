@@ -27,7 +27,7 @@ use crate::brdf::dbrdf::static_term;
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::scene::{Camera, Mesh};
-use crate::sphere::light_tree::Partition;
+use crate::sphere::light_tree::{Partition, PartitionCone};
 use crate::sphere::{Frame, LightTree, LobeSet, hemi_oct, srbf};
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
@@ -186,6 +186,8 @@ pub struct TransferContext<'a> {
     shading: Vec<(u32, u32)>,
     /// Per shading node, its light-tree node (where the walk that splits a run at the horizon starts).
     shading_nodes: Vec<u32>,
+    /// Per shading node, its corner cone (copied from the tree so that runs read them in order).
+    shading_cones: Vec<PartitionCone>,
 }
 
 impl<'a> TransferContext<'a> {
@@ -197,7 +199,8 @@ impl<'a> TransferContext<'a> {
         let sigma = srbf::sigma_from_lambda(lobes.lambda()).unwrap_or(0.08);
         let target = shading_angle.unwrap_or(0.25 * sigma).max(1e-6);
         let Partition { ranges: shading, nodes: shading_nodes, .. } = tree.partition(target);
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_nodes }
+        let shading_cones = shading_nodes.iter().map(|&k| *tree.corner_cone(k as usize)).collect();
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_nodes, shading_cones }
     }
 
     /// Number of nodes in the shading partition (over the whole sphere).
@@ -282,14 +285,22 @@ impl<'a> TransferContext<'a> {
             // ∫ max(ω·n, 0) dω over the run: its moment · n (exact) when it lies wholly above the
             // horizon (the shading node's corner cone settles most runs at once), else split by a walk
             // down the tree into sub-ranges above (their moments) and leaves astride (linear clip).
+            // A whole shading node wholly above or below the horizon is settled by its cone here, as the
+            // walk's first test would settle it, without touching the tree.
+            let cone = &self.shading_cones[si];
+            let cb = cone.axis.dot(normal);
             let mut cos_mass = 0.0;
-            self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, crate::sphere::light_tree::COARSE_HORIZON_LEAVES, &mut |lo, hi, clipped| {
-                cos_mass += match clipped {
-                    None if (lo, hi) == (a, z) => moment.dot(normal),
-                    None => light.moment(lo, hi).dot(normal),
-                    Some(c) => c,
-                }
-            });
+            if whole && cone.cos > 0.0 && cb > cone.sin {
+                cos_mass = moment.dot(normal);
+            } else if !(whole && cone.cos > 0.0 && cb < -cone.sin) {
+                self.tree.split_by_horizon(self.shading_nodes[si] as usize, a, z, normal, crate::sphere::light_tree::COARSE_HORIZON_LEAVES, &mut |lo, hi, clipped| {
+                    cos_mass += match clipped {
+                        None if (lo, hi) == (a, z) => moment.dot(normal),
+                        None => light.moment(lo, hi).dot(normal),
+                        Some(c) => c,
+                    }
+                });
+            }
             if cos_mass <= 0.0 || omega <= 0.0 {
                 return;
             }
