@@ -228,7 +228,6 @@ impl Engine {
         self.env = crate::env::load(path).map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;
         self.env_path = path.to_path_buf();
         self.light = None;
-        self.vertex_light = VertexLight::default();
         self.transfers.clear();
         Ok(())
     }

@@ -130,14 +130,20 @@ impl PhTable {
     /// space): linear between the two levels around 2·log2(1 + 2λ·spread).
     #[inline]
     pub fn lookup_filtered(&self, h: DVec3, spread: f64) -> [f64; 3] {
+        self.blend_levels(spread, |level| bilinear(level, h))
+    }
+
+    /// `sample` on the two levels around a spread's continuous level, blended linearly.
+    #[inline]
+    fn blend_levels(&self, spread: f64, sample: impl Fn(&Level) -> [f64; 3]) -> [f64; 3] {
         let t = level_position(self.lambda, spread).min((self.levels.len() - 1) as f64);
         let i = t as usize;
         let f = t - i as f64;
-        let a = bilinear(&self.levels[i], h);
+        let a = sample(&self.levels[i]);
         if f <= 0.0 || i + 1 >= self.levels.len() {
             return a;
         }
-        let b = bilinear(&self.levels[i + 1], h);
+        let b = sample(&self.levels[i + 1]);
         [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f]
     }
 
@@ -151,18 +157,7 @@ impl PhTable {
     /// texels spread over a 2D grid. `None` for anisotropic tables.
     #[inline]
     pub fn lookup_profile_filtered(&self, h: DVec3, spread: f64) -> Option<[f64; 3]> {
-        if !self.has_profile() {
-            return None;
-        }
-        let t = level_position(self.lambda, spread).min((self.levels.len() - 1) as f64);
-        let i = t as usize;
-        let f = t - i as f64;
-        let a = profile_at(&self.levels[i].profile, h.z);
-        if f <= 0.0 || i + 1 >= self.levels.len() {
-            return Some(a);
-        }
-        let b = profile_at(&self.levels[i + 1].profile, h.z);
-        Some([a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f])
+        self.has_profile().then(|| self.blend_levels(spread, |level| profile_at(&level.profile, h.z)))
     }
 }
 
