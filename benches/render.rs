@@ -44,7 +44,8 @@ fn main() {
         let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         let env = glint::env::load(&common::assets().join(env)).unwrap();
         let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-        let bake = baker.bake_all(None, &|_| {});
+        let bake = baker.bake_refined(None, &|_| {});
+        let scene = bake.scene(&scene).unwrap();
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
         for (label, max_edge_px, partition_deg) in [("vertices", 0.0, default_deg), ("vertices", 0.0, 16.0), ("1-px triangles", 1.0, default_deg)] {

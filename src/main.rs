@@ -163,6 +163,13 @@ struct BakeArgs {
     /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
     trace_leaves: usize,
+    /// Rounds of adaptive refinement: edges whose ends' visibility differs are split and the new
+    /// vertices traced (0: bake the mesh as it is).
+    #[arg(long, default_value_t = glint::bake::RefineSettings::default().rounds)]
+    refine_rounds: u32,
+    /// Split an edge when its ends' visibility differs by more than this fraction of the irradiance.
+    #[arg(long, default_value_t = glint::bake::RefineSettings::default().threshold)]
+    refine_threshold: f64,
     /// Cap on the nodes of one vertex's cut.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().max_cut)]
     max_cut: usize,
@@ -300,8 +307,12 @@ fn bake(args: &BakeArgs) -> Result<()> {
         resolution: args.resolution,
         cut: CutSettings { epsilon: args.epsilon, max_cut: args.max_cut, trace_leaves: args.trace_leaves, cell_leaves: 1, ..CutSettings::default() },
         cell_deg: args.cell_deg,
+        refine: glint::bake::RefineSettings { rounds: args.refine_rounds, threshold: args.refine_threshold, ..glint::bake::RefineSettings::default() },
         ..BakeSettings::default()
     };
+    if !(args.refine_threshold >= 0.0 && args.refine_threshold.is_finite()) {
+        anyhow::bail!("--refine-threshold must be finite and >= 0, not {}", args.refine_threshold);
+    }
     // Every input and argument is checked before anything is baked or written: the loaders refuse
     // bad files (and oversized ones) before the whole file is read for its hash, and a bad view or
     // fit size is reported before minutes of baking, not after the bake was written.
@@ -318,7 +329,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
     let mut reused = None;
     if existing.exists() && !args.force {
         match file::read(&existing) {
-            Ok((header, _)) if header.scene_hash == scene_hash && header.env_hash == env_hash && header.settings == settings => {
+            Ok((header, _, _)) if header.scene_hash == scene_hash && header.env_hash == env_hash && header.settings == settings => {
                 reused = Some(header);
             }
             Ok(_) => eprintln!("glint bake: {} was made from other inputs or settings; rebuilding", existing.display()),
@@ -334,7 +345,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
                 indicatif::ProgressStyle::with_template("baking {bar:40} {pos}/{len} vertices ({eta})")
                     .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
-            let bake = baker.bake_all(None, &|n| bar.set_position(n as u64));
+            let bake = baker.bake_refined(None, &|n| bar.set_position(n as u64));
             bar.finish_and_clear();
             let header = file::BakeHeader {
                 format_version: file::FORMAT_VERSION,
@@ -348,12 +359,14 @@ fn bake(args: &BakeArgs) -> Result<()> {
                 stats: bake.stats.clone(),
                 vertex_count: bake.cuts.vertex_count(),
             };
-            file::write(&out, &header, &bake.cuts)?;
+            file::write(&out, &header, &bake.cuts, &bake.refinement)?;
             (header, false)
         }
     };
     // The view: transfer for it and for a rotated environment (no ray tracing: only new sums).
-    let (_, cuts) = file::read(&out.join("bake.glint"))?;
+    let (_, cuts, refinement) = file::read(&out.join("bake.glint"))?;
+    let mut scene = scene;
+    scene.mesh = refinement.apply(&scene.mesh)?;
     let set = glint::sphere::DirectionSet::cube(header.decisions.resolution)?;
     let tree = glint::sphere::LightTree::build(&set);
     let lambda = glint::sphere::srbf::lambda_from_sigma(header.settings.sigma)?;
@@ -400,6 +413,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         println!("decision: {} — {}", if d.anisotropic { "anisotropic frame" } else { "isotropic fit" }, d.frame_reason);
         println!("decision: {} directions ({} per face) — {}", 6 * d.resolution * d.resolution, d.resolution, d.resolution_reason);
         println!("decision: visibility cells of {}° — {}", d.cell_deg, d.cell_reason);
+        println!("decision: {} — {}", if !refinement.is_empty() { "refined mesh" } else { "mesh as it is" }, d.refine_reason);
         println!(
             "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",
             s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds, s.decision_seconds
@@ -428,13 +442,18 @@ struct LoadedBake {
 
 fn load_bake(path: &Path) -> Result<LoadedBake> {
     use glint::bake::file;
-    let (header, cuts) = file::read(path)?;
+    let (header, cuts, refinement) = file::read(path)?;
     for (path, hash, what) in [(&header.scene_file, &header.scene_hash, "scene"), (&header.env_file, &header.env_hash, "environment")] {
         if &file::hash_file(path)? != hash {
             anyhow::bail!("the {what} {} changed since the bake; run glint bake again", path.display());
         }
     }
-    let scene = glint::scene::import(&header.scene_file)?;
+    let mut scene = glint::scene::import(&header.scene_file)?;
+    // The cuts belong to the baked (refined) mesh; the surface is the same.
+    scene.mesh = refinement.apply(&scene.mesh).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    if scene.mesh.positions.len() != cuts.vertex_count() {
+        anyhow::bail!("{}: the bake has {} cuts for a mesh of {} vertices; run glint bake again", path.display(), cuts.vertex_count(), scene.mesh.positions.len());
+    }
     let env = glint::env::load(&header.env_file)?;
     let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
     Ok(LoadedBake { header, cuts, scene, env, tangents })

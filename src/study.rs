@@ -117,6 +117,8 @@ struct Knobs {
     cell_deg: Option<f64>,
     epsilon: f64,
     max_cut: usize,
+    /// Rounds of the bake's adaptive refinement (decision (e)).
+    refine_rounds: u32,
     layout: Option<LobeLayout>,
     sigma: f64,
     fit_size: Option<(u32, u32)>,
@@ -132,6 +134,7 @@ impl Knobs {
             cell_deg: b.cell_deg,
             epsilon: b.cut.epsilon,
             max_cut: b.cut.max_cut,
+            refine_rounds: b.refine.rounds,
             layout: None,
             sigma: srbf::PAPER_SIGMA,
             fit_size: None,
@@ -140,7 +143,7 @@ impl Knobs {
         }
     }
     fn bake_key(&self) -> String {
-        format!("{:?}/{:?}/{}/{}", self.resolution, self.cell_deg, self.epsilon, self.max_cut)
+        format!("{:?}/{:?}/{}/{}/{}", self.resolution, self.cell_deg, self.epsilon, self.max_cut, self.refine_rounds)
     }
     fn changes_material(&self) -> bool {
         let d = Self::defaults();
@@ -150,6 +153,8 @@ impl Knobs {
 
 struct BakeResult {
     bake: Bake,
+    /// The scene with the baked (refined) mesh, which the cuts belong to.
+    scene: Scene,
     secs: f64,
     set: crate::sphere::DirectionSet,
     tree: crate::sphere::LightTree,
@@ -161,11 +166,14 @@ fn run_bake(scene: &Scene, env: &EnvMap, k: &Knobs) -> Result<BakeResult, StudyE
     let mut settings = BakeSettings { resolution: k.resolution, cell_deg: k.cell_deg, ..BakeSettings::default() };
     settings.cut.epsilon = k.epsilon;
     settings.cut.max_cut = k.max_cut;
+    settings.refine.rounds = k.refine_rounds;
     let t0 = Instant::now();
     let baker = Baker::new(scene, env, settings)?;
-    let bake = baker.bake_all(None, &|_| {});
+    let bake = baker.bake_refined(None, &|_| {});
     let secs = t0.elapsed().as_secs_f64();
-    Ok(BakeResult { bake, secs, set: baker.set.clone(), tree: baker.tree.clone(), tangents: baker.tangents.clone(), offset: baker.ray_offset() })
+    let refined = bake.scene(scene)?;
+    let (_, tangents, _) = crate::bake::decisions::decide_frames(&refined.mesh);
+    Ok(BakeResult { bake, scene: refined, secs, set: baker.set.clone(), tree: baker.tree.clone(), tangents, offset: baker.ray_offset() })
 }
 
 fn coefficient_slices(m: &Material) -> [&[f64]; 3] {
@@ -193,6 +201,10 @@ fn settings(quick: bool, anisotropic: bool, decided_resolution: usize, decided_c
     }
     for m in pick(&[128.0, 4096.0], &[]) {
         push("cut_cap", format!("{m}"), Knobs { max_cut: m as usize, ..d.clone() });
+    }
+    for r in pick(&[0.0, 1.0], &[0.0]).into_iter().filter(|&r| r as u32 != d.refine_rounds) {
+        let label = if r == 0.0 { "0 (the mesh as imported)".to_string() } else { format!("{r}") };
+        push("refine_rounds", label, Knobs { refine_rounds: r as u32, ..d.clone() });
     }
     let layouts: Vec<LobeLayout> = match (anisotropic, quick) {
         (true, false) => vec![LobeLayout::Hemicube { n: 5 }, LobeLayout::Hemicube { n: 9 }],
@@ -237,6 +249,8 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
     let mut camera: Camera = camera_for(scene, &first.view, first.image_size)?;
     camera.aspect = w as f32 / h as f32;
     let tracer = Tracer::new(&scene.mesh);
+    // The truth is rendered on the scene as imported (the refined meshes have the same surface).
+    let (_, base_tangents, _) = crate::bake::decisions::decide_frames(&scene.mesh);
 
     let mut bakes: HashMap<String, BakeResult> = HashMap::new();
     let defaults = Knobs::defaults();
@@ -277,12 +291,12 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
         if !fits.contains_key(&fit_key) {
             let fit_settings = FitSettings { layout: k.layout, sigma: k.sigma, fit_size: k.fit_size, ..FitSettings::default() };
             let t0 = Instant::now();
-            let outcome = fit(scene, env, &b.bake.cuts, b.bake.decisions.resolution, b.tangents.as_deref(), anisotropic, strokes, &fit_settings)?;
+            let outcome = fit(&b.scene, env, &b.bake.cuts, b.bake.decisions.resolution, b.tangents.as_deref(), anisotropic, strokes, &fit_settings)?;
             let fit_total = t0.elapsed().as_secs_f64();
             // The transfer alone, for the first view at the fit resolution (fit_total includes it).
             let lobes = outcome.material.lobes()?;
             let light = LightSums::new(env, &b.set, &b.tree, 0.0);
-            let ctx = crate::transfer::TransferContext::new(&scene.mesh, &b.bake.cuts, &b.tree, &lobes, b.tangents.as_deref(), None);
+            let ctx = crate::transfer::TransferContext::new(&b.scene.mesh, &b.bake.cuts, &b.tree, &lobes, b.tangents.as_deref(), None);
             let (fw, fh) = outcome.views[0].fit_size;
             let (_, transfer_secs) = fastest_of(TIMING_RUNS, || ctx.compute(&light, &outcome.views[0].camera, fw, fh, outcome.material.f0));
             fits.insert(fit_key.clone(), (outcome.material, transfer_secs, (fit_total - transfer_secs).max(0.0)));
@@ -300,7 +314,7 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
             Some(i) => i,
             None => {
                 let exact = ExactMaterial { lobes: &mlobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
-                let truth = render_reference(&scene.mesh, b.tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, truth_spp, 1);
+                let truth = render_reference(&scene.mesh, base_tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, truth_spp, 1);
                 truths.push((key.clone(), truth));
                 truths.len() - 1
             }
@@ -310,14 +324,14 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
             Some(spp) => {
                 let exact = ExactMaterial { lobes: &mlobes, coefficients, rho_d: material.rho_d, f0: material.f0 };
                 let t0 = Instant::now();
-                let img = render_reference(&scene.mesh, b.tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, spp, 2);
+                let img = render_reference(&scene.mesh, base_tangents.as_deref(), &tracer, b.offset, env, 0.0, exact, &camera, w, h, spp, 2);
                 (t0.elapsed().as_secs_f64(), img.relative_rmse(truth).unwrap_or(f64::NAN))
             }
             None => {
                 let resolution = k.table_resolution.unwrap_or_else(|| table::default_resolution(mlobes.lambda()));
                 let frame = || {
                     let tab = PhTable::build(&mlobes, coefficients, resolution);
-                    let prt = Prt::new(&scene.mesh, &b.bake.cuts, &b.tree, b.tangents.as_deref(), PrtSettings::default());
+                    let prt = Prt::new(&b.scene.mesh, &b.bake.cuts, &b.tree, b.tangents.as_deref(), PrtSettings::default());
                     prt.render(&light, &camera, w, h, &Shading { rho_d: material.rho_d, f0: material.f0, specular: Specular::Table(&tab) })
                 };
                 let (img, secs) = fastest_of(TIMING_RUNS, frame);

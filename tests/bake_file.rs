@@ -31,7 +31,11 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     for key in ["vertices", "rays_traced", "mean_cut_size", "seconds", "decisions", "transfer_seconds", "bytes_per_vertex"] {
         assert!(!first[key].is_null(), "missing key {key}");
     }
-    assert_eq!(first["vertices"].as_u64(), Some(529));
+    // The teapot's 529 vertices, plus the midpoints of edges the refinement split (decision (e)).
+    let vertices = first["vertices"].as_u64().unwrap();
+    assert!(vertices > 529, "the teapot under courtyard is refined: {vertices}");
+    assert_eq!(first["decisions"]["refined_vertices"].as_u64(), Some(vertices));
+    assert!(first["decisions"]["refine_reason"].as_str().unwrap().contains("edges split"), "{}", first["decisions"]["refine_reason"]);
     assert_eq!(first["reused"].as_bool(), Some(false));
     assert!(first["rays_traced"].as_u64().unwrap() > 0);
     let (second, _) = bake_json(&out);
@@ -63,9 +67,19 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     let (_, stderr) = bake_json(&out);
     assert!(stderr.contains("rebuilding"), "{stderr}");
     // After all that, the bake reads back to the same cuts as the first one.
-    let (_, a) = file::decode(&path, &std::fs::read(&path).unwrap()).unwrap();
-    let (_, b) = file::decode(&path, &good).unwrap();
+    let (_, a, ra) = file::decode(&path, &std::fs::read(&path).unwrap()).unwrap();
+    let (_, b, rb) = file::decode(&path, &good).unwrap();
     assert_eq!(a, b, "rebuilt bake differs from the first");
+    assert_eq!(ra, rb, "rebuilt refinement differs from the first");
+    // The refinement replays onto the scene's mesh: one cut per vertex of the refined mesh, the
+    // surface unchanged (same area).
+    let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let refined = ra.apply(&scene.mesh).unwrap();
+    assert_eq!(refined.positions.len(), a.vertex_count());
+    let area = |m: &glint::scene::Mesh| -> f64 {
+        m.triangles.iter().map(|t| (m.positions[t[1] as usize] - m.positions[t[0] as usize]).cross(m.positions[t[2] as usize] - m.positions[t[0] as usize]).length() as f64 * 0.5).sum()
+    };
+    assert!((area(&refined) / area(&scene.mesh) - 1.0).abs() < 1e-5, "{} vs {}", area(&refined), area(&scene.mesh));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

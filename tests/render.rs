@@ -14,6 +14,7 @@ use glint::render::table::{PhTable, default_resolution};
 use glint::scene::Scene;
 
 struct Case {
+    /// The baked scene (its mesh refined when the bake refined it).
     scene: Scene,
     env: EnvMap,
     baker_offset: f64,
@@ -23,15 +24,22 @@ struct Case {
     tree: glint::sphere::LightTree,
 }
 
+/// The mesh baked as imported.
 fn case(mesh: &str, env: &str) -> Case {
+    case_with(mesh, env, false)
+}
+
+/// With `refined`, baked as `glint bake` does: the mesh refined where visibility changes (decision (e)).
+fn case_with(mesh: &str, env: &str, refined: bool) -> Case {
     let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
     let env = glint::env::load(&common::assets().join(format!("hdr/small/{env}.exr"))).unwrap();
     let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-    let bake = baker.bake_all(None, &|_| {});
+    let bake = if refined { baker.bake_refined(None, &|_| {}) } else { baker.bake_all(None, &|_| {}) };
     let offset = baker.ray_offset();
-    let tangents = baker.tangents.clone();
     let (set, tree) = (baker.set.clone(), baker.tree.clone());
     drop(baker);
+    let scene = bake.scene(&scene).unwrap();
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
     Case { scene, env, baker_offset: offset, bake, tangents, set, tree }
 }
 
@@ -56,7 +64,10 @@ struct Errors {
 }
 
 fn compare(mesh: &str, w: u32, h: u32) -> Errors {
-    let c = case(mesh, "studio_512");
+    let c = case_with(mesh, "studio_512", true);
+    // The truth is rendered on the mesh as imported (the refinement does not move the surface).
+    let imported = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+    let (_, imported_tangents, _) = glint::bake::decisions::decide_frames(&imported.mesh);
     let m = fitted(&c);
     let lobes = m.lobes().unwrap();
     let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
@@ -77,12 +88,12 @@ fn compare(mesh: &str, w: u32, h: u32) -> Errors {
     }
     let t0 = std::time::Instant::now();
     let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
-    let tracer = glint::bake::Tracer::new(&c.scene.mesh);
-    let mc = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+    let tracer = glint::bake::Tracer::new(&imported.mesh);
+    let mc = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
     let mc_secs = t0.elapsed().as_secs_f64();
     // The reference's own noise: a second 4096-spp render with another seed (the difference of two
     // is √2 × the noise of one).
-    let mc2 = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 8);
+    let mc2 = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 8);
     let diffuse_only = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::None });
     let e = Errors {
         prt_vs_mc: tab.relative_rmse(&mc).unwrap(),
@@ -93,7 +104,9 @@ fn compare(mesh: &str, w: u32, h: u32) -> Errors {
     };
     let e_diffuse = diffuse_only.relative_rmse(&mc).unwrap();
     println!(
-        "{mesh} {w}x{h}: {} object pixels, shading subdivision {}, PRT frame {frame:.3} s, MC {mc_secs:.1} s; relative RMSE: PRT vs MC {:.4}, PRT vs per-pixel transfer {:.4}, transfer vs MC {:.4}, table vs exact lobes {:.5}, MC noise {:.4}, diffuse-only vs MC {e_diffuse:.3}",
+        "{mesh} {w}x{h}: {} baked vertices ({}), {} object pixels, shading subdivision {}, PRT frame {frame:.3} s, MC {mc_secs:.1} s; relative RMSE: PRT vs MC {:.4}, PRT vs per-pixel transfer {:.4}, transfer vs MC {:.4}, table vs exact lobes {:.5}, MC noise {:.4}, diffuse-only vs MC {e_diffuse:.3}",
+        c.scene.mesh.positions.len(),
+        c.bake.decisions.refine_reason,
         tab.covered_count(),
         prt.shading_mesh(camera, w, h).subdivision,
         e.prt_vs_mc,
@@ -108,10 +121,11 @@ fn compare(mesh: &str, w: u32, h: u32) -> Errors {
     e
 }
 
-// The goal is PRT vs Monte Carlo within 2 %. It is NOT met on these coarse meshes (bunny
-// 1,839 vertices, teapot 529; measured 3.2 % and 12.8 % with the decided 5.625° cells): visibility is
-// baked per vertex, so shadow edges of the studio's small lights fall between vertices; the per-pixel transfer render, which shares the cuts, is as far from
-// the reference. The bounds below are the measured values plus margin, so a regression fails.
+// The goal is PRT vs Monte Carlo within 2 %. It is NOT met (measured 3.2 % on the bunny and
+// 5.5 % on the teapot, baked with the refinement; 12.8 % on the teapot without it). The teapot's rest is
+// the 5.625° visibility cell; the bunny's is the PRT frame's own approximation (its per-pixel transfer
+// render, with the same cuts, is at 2.6 %). The bounds are the measured values plus margin, so a
+// regression — or a bake that stops refining — fails.
 #[test]
 fn prt_against_monte_carlo_on_the_bunny() {
     let e = compare("bunny", 160, 120);
@@ -123,7 +137,7 @@ fn prt_against_monte_carlo_on_the_bunny() {
 fn prt_against_monte_carlo_on_the_teapot() {
     let e = compare("teapot", 160, 120);
     assert!(e.prt_vs_transfer <= 0.05, "PRT vs per-pixel transfer {}", e.prt_vs_transfer);
-    assert!(e.prt_vs_mc <= 0.14, "PRT vs Monte Carlo {}", e.prt_vs_mc);
+    assert!(e.prt_vs_mc <= 0.065, "PRT vs Monte Carlo {}", e.prt_vs_mc);
 }
 
 /// Developer tool (not run by CI): `MESH=teapot cargo test --test render diagnose -- --ignored --nocapture`
@@ -224,6 +238,26 @@ fn diffuse_prt_matches_the_closed_form_on_a_sphere() {
     }
 }
 
+/// The default PRT frame, the vertex-only PRT frame and the per-pixel transfer render of `m` in the
+/// case's first camera.
+fn prt_and_transfer(c: &Case, m: &glint::fit::material::Material, w: u32, h: u32) -> (glint::render::Image, glint::render::Image, glint::render::Image) {
+    let lobes = m.lobes().unwrap();
+    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let camera = &c.scene.cameras[0];
+    let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
+    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default()).render(&light, camera, w, h, &shading);
+    let prt_v = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() }).render(&light, camera, w, h, &shading);
+    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+    let t = ctx.compute(&light, camera, w, h, m.f0);
+    let mut transfer = glint::render::Image::new(w, h);
+    for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
+        transfer.set(p.x, p.y, v.map(|x| x as f32));
+    }
+    (prt, prt_v, transfer)
+}
+
 /// Dev study (ignored): transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
 /// mesh (`cargo test --test render subdivision_study -- --ignored --nocapture`).
 #[test]
@@ -253,17 +287,7 @@ fn subdivision_study() {
             let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
             let camera = &c.scene.cameras[0];
             let (w, h) = (160, 120);
-            let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-            let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-            let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
-            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default()).render(&light, camera, w, h, &shading);
-            let prt_v = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() }).render(&light, camera, w, h, &shading);
-            let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
-            let t = ctx.compute(&light, camera, w, h, m.f0);
-            let mut transfer = glint::render::Image::new(w, h);
-            for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
-                transfer.set(p.x, p.y, v.map(|x| x as f32));
-            }
+            let (prt, prt_v, transfer) = prt_and_transfer(&c, &m, w, h);
             let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
             let tracer = glint::bake::Tracer::new(&c.scene.mesh);
             let mc = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
@@ -355,4 +379,52 @@ fn profile_frame() {
         best = best.min(t0.elapsed().as_secs_f64());
     }
     println!("{mesh} {w}x{h} partition {pd}° edge {e}: {} points, subdivision {}, shading mesh {t_mesh:.3} s, frame best {best:.3} s", sm.points.len(), sm.subdivision);
+}
+
+/// Dev study (ignored): PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
+/// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test render
+/// refine_study -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn refine_study() {
+    let spec = std::env::var("GLINT_REFINE").unwrap_or_else(|_| "teapot:0.05:128:3".into());
+    // One material per mesh, fitted on the mesh as imported, so that the rows differ only in the bake.
+    let mut materials = std::collections::HashMap::new();
+    for item in spec.split(',') {
+        let f: Vec<&str> = item.split(':').collect();
+        let (mesh, threshold, inv_edge, rounds): (&str, f64, f64, u32) = (f[0], f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+        let mut settings = BakeSettings::default();
+        settings.refine = glint::bake::RefineSettings { rounds, threshold, min_edge: 1.0 / inv_edge };
+        settings.cell_deg = f.get(4).and_then(|x| x.parse().ok());
+        let t0 = std::time::Instant::now();
+        let baker = Baker::new(&scene, &env, settings).unwrap();
+        let bake = baker.bake_refined(None, &|_| {});
+        let bake_secs = t0.elapsed().as_secs_f64();
+        let refined = bake.scene(&scene).unwrap();
+        let (baker_offset, set, tree) = (baker.ray_offset(), baker.set.clone(), baker.tree.clone());
+        drop(baker);
+        let (_, tangents, _) = glint::bake::decisions::decide_frames(&refined.mesh);
+        println!("{}", bake.decisions.refine_reason);
+        let c = Case { scene: refined, env, baker_offset, tangents, set, tree, bake };
+        let m = materials.entry(mesh.to_string()).or_insert_with(|| fitted(&case(mesh, "studio_512"))).clone();
+        let lobes = m.lobes().unwrap();
+        let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+        let camera = &c.scene.cameras[0];
+        let (w, h) = (160, 120);
+        let (prt, _, transfer) = prt_and_transfer(&c, &m, w, h);
+        let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+        let tracer = glint::bake::Tracer::new(&scene.mesh);
+        let (_, base_tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+        let mc = render_reference(&scene.mesh, base_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+        println!(
+            "{item}: {} vertices, mean cut {:.0}, rays {}, bake {bake_secs:.2} s; vs MC: transfer {:.4}, PRT {:.4}",
+            c.scene.mesh.positions.len(),
+            c.bake.cuts.mean_cut_size(),
+            c.bake.stats.rays_traced,
+            transfer.relative_rmse(&mc).unwrap(),
+            prt.relative_rmse(&mc).unwrap(),
+        );
+    }
 }

@@ -111,6 +111,9 @@ pub struct Engine {
     env: EnvMap,
     env_path: PathBuf,
     tangents: Option<Vec<Vec4>>,
+    /// The bake's refined mesh and its tangents, once the bake has refined it (decision (e)); the
+    /// cuts then belong to it. Frames and transfers use it; exports write the scene's own mesh.
+    refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>,
     anisotropic: bool,
     set: DirectionSet,
     tree: LightTree,
@@ -163,6 +166,7 @@ impl Engine {
             env,
             env_path,
             tangents,
+            refined: None,
             anisotropic,
             set,
             tree,
@@ -208,8 +212,26 @@ impl Engine {
     /// the GPU buffers (when the GPU draws the preview) and keeps the cached transfers (a baked
     /// vertex's cut never changes).
     pub fn set_cuts(&mut self, cuts: Cuts) -> Result<(), AppError> {
+        self.set_bake(cuts, None)
+    }
+
+    /// New cuts, and with `refined` the refined mesh (and its tangents) they belong to: the view's
+    /// transfers are recomputed on it.
+    pub fn set_bake(&mut self, cuts: Cuts, refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>) -> Result<(), AppError> {
+        if let Some(r) = refined {
+            self.refined = Some(r);
+            self.transfers.clear();
+            self.warm = None;
+        }
+        let (mesh, tangents) = match &self.refined {
+            Some((m, t)) => (&**m, t.as_deref()),
+            None => (&self.scene.mesh, self.tangents.as_deref()),
+        };
+        if cuts.vertex_count() != mesh.positions.len() {
+            return Err(AppError::Stage(format!("the bake delivered {} cuts for a mesh of {} vertices", cuts.vertex_count(), mesh.positions.len())));
+        }
         if self.use_gpu {
-            let mut gpu = GpuPreview::new(&self.ctx, &self.scene.mesh, &cuts, &self.tree, self.tangents.as_deref(), preview_settings(true))?;
+            let mut gpu = GpuPreview::new(&self.ctx, mesh, &cuts, &self.tree, tangents, preview_settings(true))?;
             if let Some((_, light)) = &self.light {
                 gpu.set_light(light, &self.tree)?;
             }
@@ -278,7 +300,11 @@ impl Engine {
             let (Some(cuts), Some(lobes), Some((_, light))) = (&self.cuts, &self.lobes, &self.light) else {
                 return Err(AppError::NotReady("cuts, lobes and light come before a transfer"));
             };
-            let ctx = TransferContext::new(&self.scene.mesh, cuts, &self.tree, &lobes.lobes, self.tangents.as_deref(), None);
+            let (mesh, tangents) = match &self.refined {
+                Some((m, t)) => (&**m, t.as_deref()),
+                None => (&self.scene.mesh, self.tangents.as_deref()),
+            };
+            let ctx = TransferContext::new(mesh, cuts, &self.tree, &lobes.lobes, tangents, None);
             let transfer = ctx.compute(light, &camera, fit_size.0, fit_size.1, s.f0);
             self.transfers.insert(key.clone(), transfer);
         }
@@ -322,7 +348,11 @@ impl Engine {
                 Some(t) => Specular::Table(t),
                 None => Specular::None,
             };
-            let prt = Prt::new(&self.scene.mesh, cuts, &self.tree, self.tangents.as_deref(), preview_settings(false));
+            let (mesh, tangents) = match &self.refined {
+                Some((m, t)) => (&**m, t.as_deref()),
+                None => (&self.scene.mesh, self.tangents.as_deref()),
+            };
+            let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
             prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
         };
         image.fill_background(&self.env, rotation_deg.to_radians(), &camera);

@@ -63,7 +63,8 @@ pub enum Event {
 
 enum Msg {
     Cmd(Command),
-    Cuts { cuts: Cuts, complete: bool, bake_secs: f64 },
+    /// Cuts so far; with `refined`, the refined mesh (and its tangents) they belong to.
+    Cuts { cuts: Cuts, complete: bool, bake_secs: f64, refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<glam::Vec4>>)> },
     Progress { done: usize, total: usize, phase: &'static str },
 }
 
@@ -230,8 +231,8 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                     Ok(files) => send(Event::Exported(files)),
                     Err(e) => send(Event::Error(e.to_string())),
                 },
-                Msg::Cuts { cuts, complete: all, bake_secs } => {
-                    if let Err(e) = engine.set_cuts(cuts) {
+                Msg::Cuts { cuts, complete: all, bake_secs, refined } => {
+                    if let Err(e) = engine.set_bake(cuts, refined) {
                         send(Event::Error(e.to_string()));
                         continue;
                     }
@@ -288,7 +289,7 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
     let rest: Vec<u32> = (0..n as u32).filter(|&v| !is_first[v as usize]).collect();
     let pool = bake_pool();
     let mut done = 0;
-    for (phase, vertices, complete) in [("first view", first, false), ("all vertices", rest.as_slice(), true)] {
+    for (phase, vertices) in [("first view", first), ("all vertices", rest.as_slice())] {
         for chunk in vertices.chunks(4096) {
             if cancel.load(std::sync::atomic::Ordering::Relaxed) {
                 return;
@@ -309,10 +310,34 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
             }
             done += chunk.len();
         }
-        if tx.send(Msg::Cuts { cuts: Cuts::from_vertex_cuts(&per_vertex), complete, bake_secs: start.elapsed().as_secs_f64() }).is_err() {
+        if tx.send(Msg::Cuts { cuts: Cuts::from_vertex_cuts(&per_vertex), complete: false, bake_secs: start.elapsed().as_secs_f64(), refined: None }).is_err() {
             return;
         }
     }
+    // Decision (e): refine where visibility changes between vertices, then trace the new vertices.
+    let _ = tx.send(Msg::Progress { done: n, total: n, phase: "refining" });
+    let base = Cuts::from_vertex_cuts(&per_vertex);
+    let refine = || baker.refine(per_vertex, start);
+    let bake = match &pool {
+        Some(pool) => pool.install(refine),
+        None => refine(),
+    };
+    let refined = if bake.refinement.is_empty() {
+        None
+    } else {
+        match bake.mesh(&baker.scene().mesh) {
+            Ok(mesh) => {
+                let (_, tangents, _) = crate::bake::decisions::decide_frames(&mesh);
+                Some((Arc::new(mesh), tangents))
+            }
+            // Cannot happen for a refinement made here; the base cuts stand.
+            Err(_) => {
+                let _ = tx.send(Msg::Cuts { cuts: base, complete: true, bake_secs: start.elapsed().as_secs_f64(), refined: None });
+                return;
+            }
+        }
+    };
+    let _ = tx.send(Msg::Cuts { cuts: bake.cuts, complete: true, bake_secs: start.elapsed().as_secs_f64(), refined });
 }
 
 /// The background bake's own thread pool, its threads at a lower scheduling priority (nice +10 on

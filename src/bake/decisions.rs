@@ -62,6 +62,11 @@ pub struct Decisions {
     pub cell_reason: String,
     /// (candidate cell size in degrees, relative RMS irradiance error at the probe vertices).
     pub cell_probe_errors: Vec<(f64, f64)>,
+    /// (e) Adaptive refinement of the mesh: why, and the vertex count after it.
+    #[serde(default)]
+    pub refine_reason: String,
+    #[serde(default)]
+    pub refined_vertices: usize,
 }
 
 /// (a): (trace?, reason).

@@ -2,19 +2,20 @@
 //!
 //! Layout of `bake.glint` (little-endian):
 //! `b"GLINTBAK"` · u32 format version · u32 header length · header (JSON: [`BakeHeader`]) ·
-//! u32 × (V + 1) offsets · u32 × E nodes · u16 × E visibility (padded to 4 bytes) · u64 FNV-1a of every
-//! byte before it. A `bake.json` beside it repeats the header for people.
+//! u32 × (V + 1) offsets · u32 × E nodes · u16 × E visibility (padded to 4 bytes) · the refinement
+//! (u32 P · P × u32 pair of parent vertices · u32 T · T × u32 triple of refined triangles; P = T = 0 when
+//! the mesh was not refined) · u64 FNV-1a of every byte before it. A `bake.json` beside it repeats the header for people.
 //!
-//! Inputs: a [`BakeHeader`] and [`Cuts`]. Outputs: the file, or the parsed bake. Invariants: a file that
+//! Inputs: a [`BakeHeader`], [`Cuts`] and the [`Refinement`]. Outputs: the file, or the parsed bake. Invariants: a file that
 //! is truncated, corrupt (checksum), of another format version, or internally inconsistent is refused
 //! with a one-line reason — the caller rebuilds; a write never leaves a half-written file.
 
-use super::{BakeSettings, BakeStats, Cuts, Decisions};
+use super::{BakeSettings, BakeStats, Cuts, Decisions, Refinement};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Current format version; bump on any change of layout or meaning.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 const MAGIC: &[u8; 8] = b"GLINTBAK";
 
 /// What a bake was made from and how.
@@ -71,8 +72,8 @@ pub fn hash_file(path: &Path) -> Result<String, BakeFileError> {
     Ok(format!("{:016x}", fnv1a64(&bytes)))
 }
 
-/// Serialises header and cuts.
-pub fn encode(header: &BakeHeader, cuts: &Cuts) -> Vec<u8> {
+/// Serialises header, cuts and refinement.
+pub fn encode(header: &BakeHeader, cuts: &Cuts, refinement: &Refinement) -> Vec<u8> {
     let json = serde_json::to_vec(header).unwrap_or_default();
     let mut out = Vec::with_capacity(24 + json.len() + cuts.bytes() + 16);
     out.extend_from_slice(MAGIC);
@@ -91,30 +92,38 @@ pub fn encode(header: &BakeHeader, cuts: &Cuts) -> Vec<u8> {
     if cuts.visibility.len() % 2 == 1 {
         out.extend_from_slice(&[0, 0]);
     }
+    out.extend_from_slice(&(refinement.parents.len() as u32).to_le_bytes());
+    for x in refinement.parents.iter().flatten() {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out.extend_from_slice(&(refinement.triangles.len() as u32).to_le_bytes());
+    for x in refinement.triangles.iter().flatten() {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
     let sum = fnv1a64(&out);
     out.extend_from_slice(&sum.to_le_bytes());
     out
 }
 
 /// Writes `bake.glint` and `bake.json` into `dir` (created if missing), atomically.
-pub fn write(dir: &Path, header: &BakeHeader, cuts: &Cuts) -> Result<PathBuf, BakeFileError> {
+pub fn write(dir: &Path, header: &BakeHeader, cuts: &Cuts, refinement: &Refinement) -> Result<PathBuf, BakeFileError> {
     std::fs::create_dir_all(dir).map_err(|source| BakeFileError::Io { path: dir.to_path_buf(), source })?;
     let path = dir.join("bake.glint");
-    glint_exporters::write_atomic(&path, &encode(header, cuts))?;
+    glint_exporters::write_atomic(&path, &encode(header, cuts, refinement))?;
     let json = serde_json::to_vec_pretty(header).unwrap_or_default();
     glint_exporters::write_atomic(&dir.join("bake.json"), &json)?;
     Ok(path)
 }
 
 /// Reads and checks a bake file (`bake.glint`, or a folder holding one).
-pub fn read(path: &Path) -> Result<(BakeHeader, Cuts), BakeFileError> {
+pub fn read(path: &Path) -> Result<(BakeHeader, Cuts, Refinement), BakeFileError> {
     let path = if path.is_dir() { path.join("bake.glint") } else { path.to_path_buf() };
     let bytes = std::fs::read(&path).map_err(|source| BakeFileError::Io { path: path.clone(), source })?;
     decode(&path, &bytes)
 }
 
 /// Parses bytes of a bake file (see [`read`]).
-pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts), BakeFileError> {
+pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement), BakeFileError> {
     let p = || path.to_path_buf();
     let truncated = |what: &str| BakeFileError::Truncated { path: p(), what: what.into() };
     if bytes.len() < 8 || &bytes[..8] != MAGIC {
@@ -145,11 +154,9 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts), BakeFileE
         return Err(BakeFileError::Inconsistent { path: p(), message: "offsets are not ascending from 0".into() });
     }
     let padded = e * 2 + (e % 2) * 2;
-    let expected = offsets_end + e * 4 + padded;
-    if body.len() != expected {
-        return Err(if body.len() < expected { truncated("cut data") } else {
-            BakeFileError::Inconsistent { path: p(), message: format!("{} bytes of cut data, {} expected", body.len() - offsets_end, expected - offsets_end) }
-        });
+    let cuts_end = offsets_end + e * 4 + padded;
+    if body.len() < cuts_end {
+        return Err(truncated("cut data"));
     }
     let nodes: Vec<u32> = body[offsets_end..offsets_end + e * 4].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
     let vis_start = offsets_end + e * 4;
@@ -158,5 +165,28 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts), BakeFileE
     if nodes.iter().any(|&n| n as usize >= node_count) {
         return Err(BakeFileError::Inconsistent { path: p(), message: "a cut names a node outside the light tree".into() });
     }
-    Ok((header, Cuts { offsets, nodes, visibility }))
+    // The refinement: a count, then that many groups of `width` u32s.
+    let mut at = cuts_end;
+    let mut groups = |width: usize, what: &str| -> Result<Vec<u32>, BakeFileError> {
+        let count = u32_at_body(body, at).ok_or_else(|| truncated(what))? as usize;
+        let end = count.checked_mul(4 * width).and_then(|n| n.checked_add(at + 4)).filter(|&e| e <= body.len()).ok_or_else(|| truncated(what))?;
+        let out = body[at + 4..end].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        at = end;
+        Ok(out)
+    };
+    let parents: Vec<[u32; 2]> = groups(2, "refinement vertices")?.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+    let triangles: Vec<[u32; 3]> = groups(3, "refinement triangles")?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    if at != body.len() {
+        return Err(BakeFileError::Inconsistent { path: p(), message: format!("{} bytes after the refinement", body.len() - at) });
+    }
+    let refinement = Refinement { parents, triangles };
+    // Every vertex of the refined mesh has a cut.
+    if !refinement.is_empty() && header.vertex_count < refinement.parents.len() {
+        return Err(BakeFileError::Inconsistent { path: p(), message: format!("{} cuts for {} refinement vertices", header.vertex_count, refinement.parents.len()) });
+    }
+    Ok((header, Cuts { offsets, nodes, visibility }, refinement))
+}
+
+fn u32_at_body(body: &[u8], at: usize) -> Option<u32> {
+    body.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
 }

@@ -14,6 +14,7 @@
 pub mod cuts;
 pub mod decisions;
 pub mod file;
+pub mod refine;
 pub mod runs;
 pub mod tracer;
 
@@ -22,6 +23,7 @@ use crate::scene::Scene;
 use crate::sphere::{DirectionSet, LightTree, SphereError, srbf};
 pub use cuts::{CutScratch, CutSettings, VertexCut};
 pub use decisions::{Decisions, FrameSource};
+pub use refine::{RefineSettings, Refinement};
 use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -45,11 +47,14 @@ pub struct BakeSettings {
     /// environment (decision (d), [`decisions::decide_cell`]): 11.25° unless small bright lights need
     /// 5.625°. Measured on dragon_100k: 11.25° bakes in 5.8 s, 5.625° in 16.4 s.
     pub cell_deg: Option<f64>,
+    /// Adaptive refinement of the mesh where visibility changes between vertices (decision (e),
+    /// [`refine`]); used by [`Baker::bake_refined`].
+    pub refine: RefineSettings,
 }
 
 impl Default for BakeSettings {
     fn default() -> Self {
-        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None }
+        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None, refine: RefineSettings::default() }
     }
 }
 
@@ -62,6 +67,8 @@ pub enum BakeError {
     Sphere(#[from] SphereError),
     #[error("bake settings: {0}")]
     Settings(String),
+    #[error("bake: {0}")]
+    Refine(#[from] refine::RefineError),
 }
 
 /// Cuts of all vertices, compressed row storage.
@@ -141,8 +148,28 @@ pub struct BakeStats {
 pub struct Bake {
     pub settings: BakeSettings,
     pub decisions: Decisions,
+    /// Cuts of every vertex of the baked mesh: the scene's mesh, refined by `refinement`.
     pub cuts: Cuts,
     pub stats: BakeStats,
+    /// How the baked mesh was refined from the scene's (empty: not refined).
+    pub refinement: Refinement,
+}
+
+impl Bake {
+    /// The mesh the cuts belong to: the scene's mesh with the refinement replayed.
+    pub fn mesh(&self, scene_mesh: &crate::scene::Mesh) -> Result<crate::scene::Mesh, BakeError> {
+        Ok(self.refinement.apply(scene_mesh)?)
+    }
+
+    /// `scene` with its mesh replaced by the baked mesh (cameras and bounds are unchanged: the
+    /// refinement does not move the surface).
+    pub fn scene(&self, scene: &Scene) -> Result<Scene, BakeError> {
+        let mut out = scene.clone();
+        if !self.refinement.is_empty() {
+            out.mesh = self.mesh(&scene.mesh)?;
+        }
+        Ok(out)
+    }
 }
 
 /// Everything needed to bake vertices, built once (BVH, tree, decisions).
@@ -159,6 +186,8 @@ pub struct Baker<'a> {
     normals: Vec<DVec3>,
     offset: f64,
     decision_seconds: f64,
+    /// Prefix sums of r Ω d over leaf order for the refinement's criterion ([`refine`]).
+    ring_prefix: Vec<DVec3>,
 }
 
 impl<'a> Baker<'a> {
@@ -206,6 +235,11 @@ impl<'a> Baker<'a> {
         settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
         settings.cell_deg = Some(cell_deg);
         let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
+        let ring_prefix = if trace_visibility && settings.refine.rounds > 0 {
+            refine::ring_weight_prefix(&tree, crate::light::LightSums::new(env, &set, &tree, 0.0).leaf_radiance())
+        } else {
+            Vec::new()
+        };
         let decisions = Decisions {
             trace_visibility,
             trace_reason,
@@ -218,6 +252,8 @@ impl<'a> Baker<'a> {
             cell_deg,
             cell_reason,
             cell_probe_errors,
+            refine_reason: String::new(),
+            refined_vertices: 0,
         };
         Ok(Self {
             scene,
@@ -231,6 +267,7 @@ impl<'a> Baker<'a> {
             normals,
             offset,
             decision_seconds: start.elapsed().as_secs_f64(),
+            ring_prefix,
         })
     }
 
@@ -253,27 +290,31 @@ impl<'a> Baker<'a> {
     /// Cuts of the given vertices (in parallel), in the order given. `progress` is called with the
     /// number of vertices finished so far (from any thread).
     pub fn bake_vertices(&self, vertices: &[u32], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+        let points: Vec<Option<(DVec3, DVec3)>> = vertices.iter().map(|&v| self.positions.get(v as usize).copied().zip(self.normals.get(v as usize).copied())).collect();
+        self.bake_points(&points, progress)
+    }
+
+    /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
+    /// gives an empty cut.
+    fn bake_points(&self, points: &[Option<(DVec3, DVec3)>], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
         let done = std::sync::atomic::AtomicUsize::new(0);
         let leaves = self.tree.leaf_count();
-        vertices
+        points
             .par_iter()
             .map_init(
                 || CutScratch::new(leaves),
-                |scratch, &v| {
-                    let v = v as usize;
+                |scratch, point| {
                     let cut = if !self.decisions.trace_visibility {
                         // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
                         VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon }
                     } else {
-                        match (self.positions.get(v), self.normals.get(v)) {
-                            (Some(&p), Some(&n)) => {
-                                cuts::vertex_cut(p, n, self.offset, &self.tree, &self.tracer, &self.settings.cut, scratch)
-                            }
-                            _ => VertexCut::default(),
+                        match point {
+                            Some((p, n)) => cuts::vertex_cut(*p, *n, self.offset, &self.tree, &self.tracer, &self.settings.cut, scratch),
+                            None => VertexCut::default(),
                         }
                     };
                     let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                    if n.is_multiple_of(256) || n == vertices.len() {
+                    if n.is_multiple_of(256) || n == points.len() {
                         progress(n);
                     }
                     cut
@@ -282,10 +323,9 @@ impl<'a> Baker<'a> {
             .collect()
     }
 
-    /// Bakes every vertex; `order` (e.g. the fit view's vertices first) only changes which finish
-    /// first, not the result.
-    pub fn bake_all(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
-        let start = std::time::Instant::now();
+    /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's vertices
+    /// first) only changes which finish first, not the result.
+    pub fn bake_base(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
         let n = self.positions.len();
         let default_order: Vec<u32> = (0..n as u32).collect();
         let order = order.unwrap_or(&default_order);
@@ -296,14 +336,98 @@ impl<'a> Baker<'a> {
                 *slot = cut;
             }
         }
+        per_vertex
+    }
+
+    /// Bakes every vertex of the scene's mesh as it is (no refinement); `order` only changes which
+    /// finish first, not the result.
+    pub fn bake_all(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
+        let start = std::time::Instant::now();
+        let per_vertex = self.bake_base(order, progress);
+        self.finish(per_vertex, Refinement::default(), self.decisions.clone(), start)
+    }
+
+    /// Bakes every vertex, then refines the mesh where visibility changes between vertices
+    /// ([`refine`], decision (e)) and bakes the new vertices: what `glint bake` and the app do. The
+    /// result's cuts belong to [`Bake::mesh`].
+    pub fn bake_refined(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
+        let start = std::time::Instant::now();
+        let base = self.bake_base(order, progress);
+        self.refine(base, start)
+    }
+
+    /// The refinement rounds over `base` (the cuts of every vertex of the scene's mesh).
+    pub fn refine(&self, base: Vec<VertexCut>, start: std::time::Instant) -> Bake {
+        let r = self.settings.refine;
+        let mut decisions = self.decisions.clone();
+        let base_count = base.len();
+        if !self.decisions.trace_visibility || r.rounds == 0 || self.ring_prefix.is_empty() {
+            decisions.refine_reason = if r.rounds == 0 {
+                "refinement off (0 rounds)".into()
+            } else {
+                "no visibility is traced, so it is the same at every vertex: nothing to refine".into()
+            };
+            decisions.refined_vertices = base_count;
+            return self.finish(base, Refinement::default(), decisions, start);
+        }
+        let mut mesh = self.scene.mesh.clone();
+        let mut per_vertex = base;
+        let mut parents_all: Vec<[u32; 2]> = Vec::new();
+        let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
+        let mut rounds_done = 0;
+        let mut split_total = 0;
+        for _ in 0..r.rounds {
+            let edges = refine::long_edges(&mesh, min_length);
+            let marked: Vec<(u32, u32)> = edges
+                .par_iter()
+                .copied()
+                .filter(|&(a, b)| {
+                    let (ca, cb) = (&per_vertex[a as usize], &per_vertex[b as usize]);
+                    let n = (mesh.normals[a as usize] + mesh.normals[b as usize]).as_dvec3().try_normalize().unwrap_or(DVec3::Y);
+                    refine::visibility_difference(&self.tree, &self.ring_prefix, &ca.entries, &cb.entries, n) > r.threshold
+                })
+                .collect();
+            if marked.is_empty() {
+                break;
+            }
+            let parents = refine::split_marked(&mut mesh, &marked);
+            let first_new = per_vertex.len();
+            let points: Vec<Option<(DVec3, DVec3)>> = (first_new..mesh.positions.len())
+                .map(|v| Some((mesh.positions[v].as_dvec3(), mesh.normals[v].as_dvec3().try_normalize().unwrap_or(DVec3::Y))))
+                .collect();
+            per_vertex.extend(self.bake_points(&points, &|_| {}));
+            split_total += parents.len();
+            parents_all.extend(parents);
+            rounds_done += 1;
+        }
+        decisions.refined_vertices = mesh.positions.len();
+        decisions.refine_reason = if parents_all.is_empty() {
+            format!(
+                "no edge longer than {:.4} of the diagonal has ends whose visibility differs by more than {} of the irradiance: not refined",
+                r.min_edge, r.threshold
+            )
+        } else {
+            format!(
+                "{split_total} edges split in {rounds_done} round(s) where the ends' visibility differs by more than {} of the irradiance (edges longer than {:.4} of the diagonal): {base_count} → {} vertices",
+                r.threshold,
+                r.min_edge,
+                mesh.positions.len()
+            )
+        };
+        let refinement = if parents_all.is_empty() { Refinement::default() } else { Refinement { parents: parents_all, triangles: mesh.triangles } };
+        self.finish(per_vertex, refinement, decisions, start)
+    }
+
+    fn finish(&self, per_vertex: Vec<VertexCut>, refinement: Refinement, decisions: Decisions, start: std::time::Instant) -> Bake {
+        let n = per_vertex.len();
         let cuts = Cuts::from_vertex_cuts(&per_vertex);
         let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
         let capped_vertices = per_vertex.iter().filter(|c| c.epsilon_used > self.settings.cut.epsilon).count();
         let max_cut_size = per_vertex.iter().map(|c| c.entries.len()).max().unwrap_or(0);
-        let bytes = cuts.bytes();
+        let bytes = cuts.bytes() + refinement.parents.len() * 8 + refinement.triangles.len() * 12;
         let stats = BakeStats {
             vertices: n,
-            triangles: self.scene.mesh.triangles.len(),
+            triangles: if refinement.is_empty() { self.scene.mesh.triangles.len() } else { refinement.triangles.len() },
             rays_traced,
             mean_cut_size: cuts.mean_cut_size(),
             max_cut_size,
@@ -313,12 +437,12 @@ impl<'a> Baker<'a> {
             bytes,
             bytes_per_vertex: bytes as f64 / n.max(1) as f64,
         };
-        Bake { settings: self.settings, decisions: self.decisions.clone(), cuts, stats }
+        Bake { settings: self.settings, decisions, cuts, stats, refinement }
     }
 }
 
-/// One call: decisions, BVH, every vertex.
+/// One call: decisions, BVH, every vertex, the refinement ([`Baker::bake_refined`]).
 pub fn bake(scene: &Scene, env: &EnvMap, settings: BakeSettings, progress: &(dyn Fn(usize) + Sync)) -> Result<Bake, BakeError> {
     let baker = Baker::new(scene, env, settings)?;
-    Ok(baker.bake_all(None, progress))
+    Ok(baker.bake_refined(None, progress))
 }
