@@ -3,8 +3,8 @@
 //!
 //! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k, baked
 //! with the default settings; an isotropic material with three ring lobes (J = 24, σ = π/40); the
-//! scene's default camera at 160×120 and 640×480; the default shading density (1-pixel shading
-//! triangles) and vertex shading only. Then the wgpu preview (vertex shading) on the first adapter:
+//! scene's default camera at 160×120 and 640×480; the default shading density (every covered pixel
+//! shaded at its own point), 1-pixel shading triangles and vertex shading only. Then the wgpu preview (vertex shading) on the first adapter:
 //! on a machine without a GPU that is Mesa's lavapipe, which says nothing of a GPU's speed; the table
 //! says which adapter ran. Frame = shade + raster + readback of the image (the app skips the readback);
 //! light = the per-rotation upload.
@@ -48,8 +48,8 @@ fn main() {
         let scene = bake.scene(&scene).unwrap();
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
-        for (label, max_edge_px, partition_deg) in [("vertices", 0.0, default_deg), ("vertices", 0.0, 16.0), ("1-px triangles", 1.0, default_deg)] {
-            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, partition_deg, ..PrtSettings::default() });
+        for (label, max_edge_px, partition_deg, per_pixel) in [("vertices", 0.0, default_deg, false), ("vertices", 0.0, 16.0, false), ("1-px triangles", 1.0, default_deg, false), ("per pixel (default)", 1.0, default_deg, true)] {
+            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, partition_deg, per_pixel, ..PrtSettings::default() });
             let label = format!("{label}, {partition_deg}° partition");
             for (w, h) in [(160, 120), (640, 480)] {
                 let mut camera = scene.cameras[0].clone();
@@ -58,7 +58,7 @@ fn main() {
                 let reps = if sm.points.len() > 100_000 { 1 } else { 3 };
                 let secs = time(reps, || prt.render(&light, &camera, w, h, &shading));
                 println!("| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |", scene.mesh.positions.len(), sm.subdivision, sm.points.len(), 1.0 / secs);
-                if max_edge_px == 0.0 {
+                if max_edge_px == 0.0 && !per_pixel {
                     // The per-vertex light cached (what a new view or a new material reuses; the app's
                     // CPU preview): the first frame fills it, later frames evaluate the BRDF only.
                     let mut cache = glint::render::VertexLight::default();
@@ -80,7 +80,7 @@ fn main() {
         #[cfg(feature = "gui")]
         match glint::gpu::GpuContext::headless() {
             Ok(ctx) => {
-                let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+                let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() };
                 let mut preview = glint::gpu::GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, settings).unwrap();
                 preview.set_material([0.5; 3], 0.04, Some(&table)).unwrap();
                 let t_light = time(3, || preview.set_light(&light, &baker.tree).unwrap());

@@ -674,7 +674,7 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         None if args.gpu => {
             let ctx = glint::gpu::GpuContext::headless()?;
-            let settings = PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() };
+            let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() };
             let mut preview = glint::gpu::GpuPreview::new(&ctx, &loaded.scene.mesh, &loaded.cuts, &tree, loaded.tangents.as_deref(), settings)?;
             let t = table::PhTable::build(&lobes, coefficients, table::default_resolution(lobes.lambda()));
             preview.set_light(&glint::light::LightSums::new(&loaded.env, &set, &tree, rotation), &tree)?;

@@ -296,7 +296,7 @@ fn non_manifold_mesh_matches_monte_carlo() {
     let zero = vec![0.0; 4];
     let coefficients = [zero.as_slice(), zero.as_slice(), zero.as_slice()];
     let shading = Shading { rho_d: [1.0; 3], f0: 0.04, specular: Specular::None };
-    let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px: 0.0, ..PrtSettings::default() }).render(&light, &camera, 48, 36, &shading);
+    let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() }).render(&light, &camera, 48, 36, &shading);
     let material = glint::render::reference::ExactMaterial { lobes: &lobes, coefficients, rho_d: [1.0; 3], f0: 0.04 };
     let tracer = glint::bake::Tracer::new(&scene.mesh);
     let mc = glint::render::reference::render_reference(&scene.mesh, None, &tracer, baker.ray_offset(), &env, 0.0, material, &camera, 48, 36, 1024, 7);

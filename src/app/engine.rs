@@ -83,7 +83,7 @@ impl std::str::FromStr for PreviewChoice {
 /// teapot 12.83 / 12.99 %; dragon_100k at 640×480: 0.30 s / 0.15 s, `cargo bench --bench render`).
 fn preview_settings(gpu: bool) -> PrtSettings {
     let partition_deg = if gpu { PrtSettings::default().partition_deg } else { CPU_PREVIEW_PARTITION_DEG };
-    PrtSettings { max_edge_px: 0.0, partition_deg, ..PrtSettings::default() }
+    PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg, ..PrtSettings::default() }
 }
 
 /// The CPU preview's render partition (degrees), see [`preview_settings`].

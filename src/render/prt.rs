@@ -64,6 +64,11 @@ pub struct PrtSettings {
     /// wgpu preview reads, for comparing the two. Off: the profile, which is faster and has no 2D
     /// interpolation error.
     pub texel_lookups: bool,
+    /// Shade every covered pixel at its own surface point (the fragment's perspective-correct
+    /// barycentrics, corner cuts blended as the transfer does) instead of interpolating a shading mesh;
+    /// `max_edge_px` is then unused. Never more points than the 1-pixel shading mesh (which has up to
+    /// 2 per pixel), and no interpolation of sharp highlights between points.
+    pub per_pixel: bool,
 }
 
 impl Default for PrtSettings {
@@ -74,7 +79,7 @@ impl Default for PrtSettings {
     /// (bunny) and 20.09 / 20.06 / 20.27 % (teapot), PRT vs transfer 1.10 / 1.15 / 1.35 % (teapot);
     /// the frame takes 2.3× less time at 8° than at 4° (bench), and 16° only 1.2–1.7× less again.
     fn default() -> Self {
-        Self { partition_deg: 8.0, prefilter: true, max_edge_px: 1.0, horizon_leaves: HORIZON_LEAVES, texel_lookups: false }
+        Self { partition_deg: 8.0, prefilter: true, max_edge_px: 1.0, horizon_leaves: HORIZON_LEAVES, texel_lookups: false, per_pixel: true }
     }
 }
 
@@ -527,6 +532,10 @@ impl<'a> Prt<'a> {
     /// and these cuts: the caller keeps it across views and materials and drops it when either
     /// changes. Points inside triangles (`max_edge_px > 0`) are shaded directly.
     pub fn render_cached(&self, cache: &mut VertexLight, light: &LightSums, camera: &Camera, width: u32, height: u32, shading: &Shading) -> Image {
+        if self.settings.per_pixel {
+            // Every point is inside a triangle: nothing to cache.
+            return self.render(light, camera, width, height, shading);
+        }
         let sm = self.shading_mesh(camera, width, height);
         self.fill_vertex_light(cache, &sm.points, light);
         let eye = camera.eye().as_dvec3();
@@ -544,14 +553,43 @@ impl<'a> Prt<'a> {
         points.par_iter().map(|p| self.shade_point(p, light, eye, shading)).collect()
     }
 
-    /// The shading mesh this renderer would use for a view.
+    /// The shading mesh this renderer would use for a view. With `per_pixel`, its points are the
+    /// covered pixels' surface points (no triangles; `subdivision` 0).
     pub fn shading_mesh(&self, camera: &Camera, width: u32, height: u32) -> ShadingMesh {
+        if self.settings.per_pixel {
+            let (_, points) = self.pixel_points(camera, width, height);
+            let positions = points.iter().map(|p| (0..3).map(|i| self.mesh.positions[p.corners[i] as usize] * p.bary[i]).sum()).collect();
+            return ShadingMesh { points, positions, triangles: Vec::new(), subdivision: 0 };
+        }
         shading_mesh(self.mesh, camera, width, height, self.settings.max_edge_px)
     }
 
-    /// A frame: shade the points of the view's shading mesh, interpolate per pixel. Pixels off the
-    /// object stay black and uncovered (see [`Image::fill_background`]).
+    /// The visible fragment of each covered pixel and its surface point.
+    fn pixel_points(&self, camera: &Camera, width: u32, height: u32) -> (Vec<crate::raster::Fragment>, Vec<ShadingPoint>) {
+        let fragments = rasterize(self.mesh, camera, width, height);
+        let points = fragments
+            .iter()
+            .map(|f| match self.mesh.triangles.get(f.triangle as usize) {
+                Some(&corners) => ShadingPoint { corners, bary: f.bary },
+                None => ShadingPoint { corners: [0; 3], bary: [1.0, 0.0, 0.0] },
+            })
+            .collect();
+        (fragments, points)
+    }
+
+    /// A frame: shade the points of the view's shading mesh, interpolate per pixel (or, with
+    /// `per_pixel`, shade each covered pixel's own point). Pixels off the object stay black and
+    /// uncovered (see [`Image::fill_background`]).
     pub fn render(&self, light: &LightSums, camera: &Camera, width: u32, height: u32, shading: &Shading) -> Image {
+        if self.settings.per_pixel {
+            let (fragments, points) = self.pixel_points(camera, width, height);
+            let radiance = self.shade_points(&points, light, camera.eye().as_dvec3(), shading);
+            let mut image = Image::new(width, height);
+            for (f, rgb) in fragments.iter().zip(&radiance) {
+                image.set(f.x, f.y, rgb.map(|x| x as f32));
+            }
+            return image;
+        }
         let sm = self.shading_mesh(camera, width, height);
         let radiance = self.shade_points(&sm.points, light, camera.eye().as_dvec3(), shading);
         interpolate(&sm, &radiance, camera, width, height)
