@@ -16,11 +16,12 @@
 //!   runs do not alias sharp lobes; `prefilter: false` evaluates p at ω_run alone. Isotropic tables are
 //!   read from their polar profiles ([`PhTable::lookup_profile_filtered`]) unless `texel_lookups`.
 //!
-//! Shading points: eq. 22 is evaluated at the mesh's vertices, and — where the mesh is coarse for the
-//! view — at the vertices of a uniformly subdivided copy of its visible triangles ([`ShadingMesh`]).
-//! A point inside a triangle blends its three corners' cuts (V = Σ bᵢ Vᵢ over the merged leaf ranges)
-//! and interpolates the normal and tangent, as the transfer does per pixel. The shading mesh is then
-//! rasterised and its points' radiance interpolated.
+//! Shading points: by default (`per_pixel`) eq. 22 is evaluated at every covered pixel's own surface
+//! point (the fragment's barycentrics). Otherwise at the mesh's vertices (`max_edge_px: 0`, the app's
+//! preview and the wgpu preview) or also at the vertices of a uniformly subdivided copy of its visible
+//! triangles ([`ShadingMesh`]), whose radiance is then rasterised and interpolated. A point inside a
+//! triangle blends its three corners' cuts (V = Σ bᵢ Vᵢ over the merged leaf ranges) and interpolates
+//! the normal and tangent, as the transfer does per pixel.
 //!
 //! Inputs: mesh, cuts, light tree, tangents (or none), [`LightSums`] for the rotation, the eye, the
 //! material's ρd and F0, and p as a table or as the exact lobe sum. Output: RGB radiance per shading
@@ -53,9 +54,9 @@ pub struct PrtSettings {
     pub partition_deg: f64,
     /// Pre-filter p by each run's angular spread.
     pub prefilter: bool,
-    /// Largest projected edge (pixels) of a shading triangle: coarse meshes are subdivided (uniformly,
-    /// so no T-junctions) until 90 % of the visible triangles' edges are this short; 0 shades the
-    /// mesh's own vertices only.
+    /// With `per_pixel` off: largest projected edge (pixels) of a shading triangle: coarse meshes are
+    /// subdivided (uniformly, so no T-junctions) until 90 % of the visible triangles' edges are this
+    /// short; 0 shades the mesh's own vertices only.
     pub max_edge_px: f64,
     /// Nodes of at most this many leaves that the horizon cuts are clipped as a whole
     /// ([`LightTree::split_by_horizon`]'s disc model) instead of leaf by leaf; ≤ 1 clips every leaf.
@@ -74,7 +75,8 @@ pub struct PrtSettings {
 impl Default for PrtSettings {
     /// Chosen by measurement at 160×120 (tests/render.rs, `diagnose`): against the per-pixel transfer
     /// render the bunny's PRT frame is 12.5 % off with vertex shading only, 5.6 % at 2-pixel and 2.1 %
-    /// at 1-pixel shading triangles. The partition angle matters little thanks to the radiance-weighted
+    /// at 1-pixel shading triangles, and 0.44 % shaded per pixel (the default, which is also the fastest
+    /// of the three at the same picture, 2026-11-24). The partition angle matters little thanks to the radiance-weighted
     /// run directions and pre-filtering: PRT vs Monte Carlo at 4° / 8° / 16° is 5.28 / 5.29 / 5.31 %
     /// (bunny) and 20.09 / 20.06 / 20.27 % (teapot), PRT vs transfer 1.10 / 1.15 / 1.35 % (teapot);
     /// the frame takes 2.3× less time at 8° than at 4° (bench), and 16° only 1.2–1.7× less again.
