@@ -372,6 +372,15 @@ impl<'a> Baker<'a> {
         }
         let mut mesh = self.scene.mesh.clone();
         let mut per_vertex = base;
+        // Each new vertex as a blend of at most three imported vertices (the corners of the imported
+        // triangle it lies in), so that its rays start on the smooth surface the imported normals
+        // describe, as the imported vertices' do, not on the flat facet below it (which would see
+        // the neighbouring facets at grazing angles: the shadow-terminator problem).
+        let mut blends: Vec<Vec<(u32, f64)>> = Vec::new();
+        let base_count_u32 = base_count as u32;
+        let blend_of = |blends: &Vec<Vec<(u32, f64)>>, v: u32| -> Vec<(u32, f64)> {
+            if v < base_count_u32 { vec![(v, 1.0)] } else { blends.get((v - base_count_u32) as usize).cloned().unwrap_or_default() }
+        };
         let mut parents_all: Vec<[u32; 2]> = Vec::new();
         let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
         let mut rounds_done = 0;
@@ -392,8 +401,25 @@ impl<'a> Baker<'a> {
             }
             let parents = refine::split_marked(&mut mesh, &marked);
             let first_new = per_vertex.len();
+            for &[a, b] in &parents {
+                let mut blend = blend_of(&blends, a);
+                for (v, w) in blend_of(&blends, b) {
+                    match blend.iter_mut().find(|(u, _)| *u == v) {
+                        Some(entry) => entry.1 += w,
+                        None => blend.push((v, w)),
+                    }
+                }
+                blend.iter_mut().for_each(|e| e.1 *= 0.5);
+                blends.push(blend);
+            }
             let points: Vec<Option<(DVec3, DVec3)>> = (first_new..mesh.positions.len())
-                .map(|v| Some((mesh.positions[v].as_dvec3(), mesh.normals[v].as_dvec3().try_normalize().unwrap_or(DVec3::Y))))
+                .map(|v| {
+                    let flat = mesh.positions[v].as_dvec3();
+                    let blend = blend_of(&blends, v as u32);
+                    // An edge lies in one imported triangle, so a blend has at most three corners.
+                    let p = if blend.len() <= 3 { crate::scene::smooth_surface_point(&self.scene.mesh, &blend, flat) } else { flat };
+                    Some((p, mesh.normals[v].as_dvec3().try_normalize().unwrap_or(DVec3::Y)))
+                })
                 .collect();
             per_vertex.extend(self.bake_points(&points, &|_| {}));
             split_total += parents.len();

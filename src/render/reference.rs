@@ -288,7 +288,7 @@ pub fn render_reference(
             // the facet, directions above the shading normal's horizon but below the facet's plane
             // hit the facet itself, which darkened coarse meshes in stripes along their facets
             // (the shadow terminator; the bake's rays leave from vertices, which lie on that surface).
-            let origin = smooth_surface_point(mesh, tri, b, position) + normal * ray_offset;
+            let origin = crate::scene::smooth_surface_point(mesh, &[(tri[0], b[0]), (tri[1], b[1]), (tri[2], b[2])], position) + normal * ray_offset;
             let o = Vec3A::new(origin.x as f32, origin.y as f32, origin.z as f32);
             let visible = |d: DVec3| !tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32));
             let mut rng = Rng::new(seed ^ ((f.y as u64) << 32 | f.x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
@@ -375,18 +375,4 @@ mod tests {
     }
 }
 
-/// The point on the smooth surface the vertex normals describe, above a point of a flat triangle
-/// (Hanika, "Hacking the shadow terminator", Ray Tracing Gems II, ch. 4): the point is projected onto
-/// each corner's tangent plane where it lies below it, and the projections are blended by the
-/// barycentrics. Where the mesh is convex this lifts the point off the facet, so rays above the
-/// shading normal's horizon do not hit the facet they start from; where it is concave it stays.
-fn smooth_surface_point(mesh: &Mesh, tri: [u32; 3], b: [f64; 3], position: DVec3) -> DVec3 {
-    let mut lifted = position;
-    for i in 0..3 {
-        let p = mesh.positions[tri[i] as usize].as_dvec3();
-        let n = mesh.normals[tri[i] as usize].as_dvec3().try_normalize().unwrap_or(DVec3::ZERO);
-        let below = (position - p).dot(n).min(0.0);
-        lifted -= b[i] * below * n;
-    }
-    lifted
-}
+

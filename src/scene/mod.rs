@@ -54,7 +54,7 @@ pub use camera::{
 pub use container::{IGNORABLE_REQUIRED_EXTENSIONS, IGNORABLE_REQUIRED_PREFIXES, MAX_FILE_BYTES};
 pub use error::ImportError;
 pub use geometry::angle_weighted_normals;
-pub use subdivide::{push_midpoint, split_edges, subdivide_midpoint};
+pub use subdivide::{push_midpoint, smooth_surface_point, split_edges, subdivide_midpoint};
 
 /// Largest number of vertices in a scene after instancing (64 Mi).
 pub const MAX_SCENE_VERTICES: usize = 64 * 1024 * 1024;

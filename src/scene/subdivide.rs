@@ -16,6 +16,24 @@ use super::Mesh;
 use glam::{Vec3, Vec4};
 use std::collections::HashMap;
 
+/// The point on the smooth surface the vertex normals describe, above a point `position` of a flat
+/// triangle with barycentrics `corners` ((vertex, weight), weights summing to 1) (Hanika, "Hacking the
+/// shadow terminator", Ray Tracing Gems II, ch. 4): the point is projected onto each corner's tangent
+/// plane where it lies below it, and the projections are blended by the weights. Where the mesh is
+/// convex this lifts the point off the facet, so rays above the shading normal's horizon do not hit
+/// the facet they start from; where it is concave it stays. The Monte Carlo reference starts its rays
+/// there, and the bake traces a refined mesh's midpoints from there.
+pub fn smooth_surface_point(mesh: &Mesh, corners: &[(u32, f64)], position: glam::DVec3) -> glam::DVec3 {
+    let mut lifted = position;
+    for &(v, w) in corners {
+        let (Some(p), Some(n)) = (mesh.positions.get(v as usize), mesh.normals.get(v as usize)) else { continue };
+        let n = n.as_dvec3().try_normalize().unwrap_or(glam::DVec3::ZERO);
+        let below = (position - p.as_dvec3()).dot(n).min(0.0);
+        lifted -= w * below * n;
+    }
+    lifted
+}
+
 /// Appends the midpoint of edge (a, b) to `mesh` (position halfway, normal and tangent the normalised
 /// sums, UV halfway, handedness from `a`) and returns its index. `a` and `b` must be vertices of `mesh`.
 pub fn push_midpoint(mesh: &mut Mesh, a: u32, b: u32) -> u32 {
