@@ -168,6 +168,21 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
     let undone: Arc<Image> = app(&h).preview_image().unwrap().clone();
     let (_, lum_undone, _) = mean_luminance(&before, &undone, painted);
     assert!((lum_undone - lum_before).abs() < 0.02 * lum_before, "undo left {lum_undone} vs {lum_before}");
+
+    // The rest of the bake, refined (decision (e)): the engine switches to the refined mesh, and a
+    // redo fits the stroke again there: the painted region brightens as it did on the first view's cuts.
+    step_until(&mut h, "the whole bake with its refinement", 300.0, |a| a.bake_complete());
+    let note = app(&h).messages().iter().find(|m| m.starts_with("bake complete")).cloned().unwrap_or_default();
+    let vertices: usize = note.split('(').nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
+    assert!(vertices > 1839, "the bunny's bake refines its 1,839 vertices: {note}");
+    h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, egui::Key::Z);
+    step_until(&mut h, "the fit after redo, on the refined mesh", 120.0, |a| a.fits_done() >= 4 && !a.fit_pending());
+    assert_eq!(app(&h).document().stroke_count(), 1);
+    let redone: Arc<Image> = app(&h).preview_image().unwrap().clone();
+    let (_, lum_redone, _) = mean_luminance(&before, &redone, painted);
+    eprintln!("after the refined bake: painted region {lum_before:.4} → {lum_redone:.4} (first fit {lum_after:.4})");
+    assert!(lum_redone > 1.15 * lum_before, "painted region after the refined bake: {lum_before} → {lum_redone}");
+    assert!((lum_redone - lum_after).abs() < 0.1 * lum_after, "refined {lum_redone} vs first {lum_after}");
 }
 
 #[test]

@@ -245,6 +245,11 @@ impl Engine {
         Ok(())
     }
 
+    /// Vertices of the mesh the cuts belong to (the refined mesh once the bake has refined it).
+    pub fn baked_vertices(&self) -> usize {
+        self.refined.as_ref().map_or(self.scene.mesh.positions.len(), |(m, _)| m.positions.len())
+    }
+
     /// Replaces the environment (the bake stays: visibility does not depend on the light).
     pub fn set_env(&mut self, path: &Path) -> Result<(), AppError> {
         self.env = crate::env::load(path).map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;

@@ -344,9 +344,9 @@ impl GlintApp {
                         self.replay(views);
                     }
                 }
-                Event::BakeComplete { bake_secs } => {
+                Event::BakeComplete { bake_secs, vertices } => {
                     self.bake_complete = Some(bake_secs);
-                    self.note(format!("bake complete {bake_secs:.2} s after launch"));
+                    self.note(format!("bake complete {bake_secs:.2} s after launch ({vertices} vertices after refinement)"));
                     self.request_frame();
                 }
                 Event::Frame { view, image } => {

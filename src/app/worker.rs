@@ -47,8 +47,9 @@ pub enum Event {
     /// The first view's transfer and the default lobes' energy rows are ready: a stroke's fit there is
     /// only a solve from now on.
     FitPrepared { secs_since_start: f64, prepare_secs: f64 },
-    /// Every vertex is baked.
-    BakeComplete { bake_secs: f64 },
+    /// Every vertex is baked, and the mesh refined where the bake decided to (`vertices`: the baked
+    /// mesh's, after the refinement).
+    BakeComplete { bake_secs: f64, vertices: usize },
     /// A preview frame.
     Frame { view: ViewSpec, image: Arc<Image> },
     /// A fit and the frame that shows it.
@@ -243,7 +244,7 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                     }
                     if all {
                         complete = true;
-                        send(Event::BakeComplete { bake_secs });
+                        send(Event::BakeComplete { bake_secs, vertices: engine.baked_vertices() });
                     }
                     let ready = |c: &Command| match c {
                         Command::Fit { doc, .. } => complete || doc.views.iter().all(|v| is_first(&v.view)),
