@@ -98,6 +98,16 @@ pub struct FitResult {
     pub table_image: Option<Image>,
 }
 
+/// The refined mesh and its tangents, the cuts' mesh (taken field by field, so that a caller can hold
+/// it while it mutates the engine's other fields).
+type Refined = Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>;
+fn baked_mesh<'a>(scene: &'a Scene, tangents: &'a Option<Vec<Vec4>>, refined: &'a Refined) -> (&'a crate::scene::Mesh, Option<&'a [Vec4]>) {
+    match refined {
+        Some((m, t)) => (m, t.as_deref()),
+        None => (&scene.mesh, tangents.as_deref()),
+    }
+}
+
 /// Lobes, energy rows and the key they were built for.
 struct LobeCache {
     key: (u64, usize),
@@ -113,7 +123,7 @@ pub struct Engine {
     tangents: Option<Vec<Vec4>>,
     /// The bake's refined mesh and its tangents, once the bake has refined it (decision (e)); the
     /// cuts then belong to it. Frames and transfers use it; exports write the scene's own mesh.
-    refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>,
+    refined: Refined,
     anisotropic: bool,
     set: DirectionSet,
     tree: LightTree,
@@ -210,23 +220,15 @@ impl Engine {
 
     /// New cuts from the bake (partial: unbaked vertices have empty cuts and render black). Rebuilds
     /// the GPU buffers (when the GPU draws the preview) and keeps the cached transfers (a baked
-    /// vertex's cut never changes).
-    pub fn set_cuts(&mut self, cuts: Cuts) -> Result<(), AppError> {
-        self.set_bake(cuts, None)
-    }
-
-    /// New cuts, and with `refined` the refined mesh (and its tangents) they belong to: the view's
-    /// transfers are recomputed on it.
-    pub fn set_bake(&mut self, cuts: Cuts, refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>) -> Result<(), AppError> {
+    /// vertex's cut never changes) — unless `refined` brings the refined mesh (and its tangents) the
+    /// cuts now belong to: then the transfers are dropped and recomputed on it.
+    pub fn set_bake(&mut self, cuts: Cuts, refined: Refined) -> Result<(), AppError> {
         if let Some(r) = refined {
             self.refined = Some(r);
             self.transfers.clear();
             self.warm = None;
         }
-        let (mesh, tangents) = match &self.refined {
-            Some((m, t)) => (&**m, t.as_deref()),
-            None => (&self.scene.mesh, self.tangents.as_deref()),
-        };
+        let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
         if cuts.vertex_count() != mesh.positions.len() {
             return Err(AppError::Stage(format!("the bake delivered {} cuts for a mesh of {} vertices", cuts.vertex_count(), mesh.positions.len())));
         }
@@ -247,7 +249,7 @@ impl Engine {
 
     /// Vertices of the mesh the cuts belong to (the refined mesh once the bake has refined it).
     pub fn baked_vertices(&self) -> usize {
-        self.refined.as_ref().map_or(self.scene.mesh.positions.len(), |(m, _)| m.positions.len())
+        baked_mesh(&self.scene, &self.tangents, &self.refined).0.positions.len()
     }
 
     /// Replaces the environment (the bake stays: visibility does not depend on the light).
@@ -305,10 +307,7 @@ impl Engine {
             let (Some(cuts), Some(lobes), Some((_, light))) = (&self.cuts, &self.lobes, &self.light) else {
                 return Err(AppError::NotReady("cuts, lobes and light come before a transfer"));
             };
-            let (mesh, tangents) = match &self.refined {
-                Some((m, t)) => (&**m, t.as_deref()),
-                None => (&self.scene.mesh, self.tangents.as_deref()),
-            };
+            let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
             let ctx = TransferContext::new(mesh, cuts, &self.tree, &lobes.lobes, tangents, None);
             let transfer = ctx.compute(light, &camera, fit_size.0, fit_size.1, s.f0);
             self.transfers.insert(key.clone(), transfer);
@@ -353,10 +352,7 @@ impl Engine {
                 Some(t) => Specular::Table(t),
                 None => Specular::None,
             };
-            let (mesh, tangents) = match &self.refined {
-                Some((m, t)) => (&**m, t.as_deref()),
-                None => (&self.scene.mesh, self.tangents.as_deref()),
-            };
+            let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
             let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
             prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
         };

@@ -67,6 +67,8 @@ enum Msg {
     /// Cuts so far; with `refined`, the refined mesh (and its tangents) they belong to.
     Cuts { cuts: Cuts, complete: bool, bake_secs: f64, refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<glam::Vec4>>)> },
     Progress { done: usize, total: usize, phase: &'static str },
+    /// The bake could not finish (its message).
+    Failed(String),
 }
 
 /// The handle the UI holds.
@@ -257,6 +259,7 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                     }
                 }
                 Msg::Progress { done, total, phase } => send(Event::Progress { done, total, phase }),
+                Msg::Failed(e) => send(Event::Error(format!("the bake failed: {e}"))),
             }
         }
     }
@@ -317,7 +320,6 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
     }
     // Decision (e): refine where visibility changes between vertices, then trace the new vertices.
     let _ = tx.send(Msg::Progress { done: n, total: n, phase: "refining" });
-    let base = Cuts::from_vertex_cuts(&per_vertex);
     let refine = || baker.refine(per_vertex, start);
     let bake = match &pool {
         Some(pool) => pool.install(refine),
@@ -331,9 +333,9 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
                 let (_, tangents, _) = crate::bake::decisions::decide_frames(&mesh);
                 Some((Arc::new(mesh), tangents))
             }
-            // Cannot happen for a refinement made here; the base cuts stand.
-            Err(_) => {
-                let _ = tx.send(Msg::Cuts { cuts: base, complete: true, bake_secs: start.elapsed().as_secs_f64(), refined: None });
+            // Cannot happen for a refinement made here (split_edges only names existing vertices).
+            Err(e) => {
+                let _ = tx.send(Msg::Failed(e.to_string()));
                 return;
             }
         }

@@ -168,7 +168,7 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
     // The refinement: a count, then that many groups of `width` u32s.
     let mut at = cuts_end;
     let mut groups = |width: usize, what: &str| -> Result<Vec<u32>, BakeFileError> {
-        let count = u32_at_body(body, at).ok_or_else(|| truncated(what))? as usize;
+        let count = u32_at(at).filter(|_| at + 4 <= body.len()).ok_or_else(|| truncated(what))? as usize;
         let end = count.checked_mul(4 * width).and_then(|n| n.checked_add(at + 4)).filter(|&e| e <= body.len()).ok_or_else(|| truncated(what))?;
         let out = body[at + 4..end].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         at = end;
@@ -185,8 +185,4 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
         return Err(BakeFileError::Inconsistent { path: p(), message: format!("{} cuts for {} refinement vertices", header.vertex_count, refinement.parents.len()) });
     }
     Ok((header, Cuts { offsets, nodes, visibility }, refinement))
-}
-
-fn u32_at_body(body: &[u8], at: usize) -> Option<u32> {
-    body.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
 }

@@ -385,11 +385,15 @@ impl<'a> Baker<'a> {
         let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
         let mut rounds_done = 0;
         let mut split_total = 0;
+        // Edges between vertices that were there in an earlier round were judged then, on the same
+        // cuts: each round looks only at edges with an end added by the round before.
+        let mut since = 0u32;
         for _ in 0..r.rounds {
             let edges = refine::long_edges(&mesh, min_length);
             let marked: Vec<(u32, u32)> = edges
                 .par_iter()
                 .copied()
+                .filter(|&(_, b)| b >= since)
                 .filter(|&(a, b)| {
                     let (ca, cb) = (&per_vertex[a as usize], &per_vertex[b as usize]);
                     let n = (mesh.normals[a as usize] + mesh.normals[b as usize]).as_dvec3().try_normalize().unwrap_or(DVec3::Y);
@@ -401,6 +405,7 @@ impl<'a> Baker<'a> {
             }
             let parents = refine::split_marked(&mut mesh, &marked);
             let first_new = per_vertex.len();
+            since = first_new as u32;
             for &[a, b] in &parents {
                 let mut blend = blend_of(&blends, a);
                 for (v, w) in blend_of(&blends, b) {
