@@ -160,6 +160,11 @@ struct BakeArgs {
     /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the reason).
     #[arg(long)]
     cell_deg: Option<f64>,
+    /// Times a visibility cell beside a cell of the other visibility (a shadow edge) is traced again as
+    /// cells half as wide (0: off). Default: decided with the cell size (2 where small bright lights
+    /// cast sharp shadows, else 0).
+    #[arg(long)]
+    boundary_levels: Option<u32>,
     /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
     trace_leaves: usize,
@@ -307,6 +312,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         resolution: args.resolution,
         cut: CutSettings { epsilon: args.epsilon, max_cut: args.max_cut, trace_leaves: args.trace_leaves, cell_leaves: 1, ..CutSettings::default() },
         cell_deg: args.cell_deg,
+        boundary_levels: args.boundary_levels,
         refine: glint::bake::RefineSettings { rounds: args.refine_rounds, threshold: args.refine_threshold, ..glint::bake::RefineSettings::default() },
         ..BakeSettings::default()
     };
@@ -413,6 +419,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         println!("decision: {} — {}", if d.anisotropic { "anisotropic frame" } else { "isotropic fit" }, d.frame_reason);
         println!("decision: {} directions ({} per face) — {}", 6 * d.resolution * d.resolution, d.resolution, d.resolution_reason);
         println!("decision: visibility cells of {}° — {}", d.cell_deg, d.cell_reason);
+        println!("decision: {} — {}", if d.boundary_levels > 0 { format!("{} boundary level(s)", d.boundary_levels) } else { "no boundary refinement".into() }, d.boundary_reason);
         println!("decision: {} — {}", if !refinement.is_empty() { "refined mesh" } else { "mesh as it is" }, d.refine_reason);
         println!(
             "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",

@@ -62,6 +62,12 @@ pub struct Decisions {
     pub cell_reason: String,
     /// (candidate cell size in degrees, relative RMS irradiance error at the probe vertices).
     pub cell_probe_errors: Vec<(f64, f64)>,
+    /// (d) Boundary refinement of the cells: how many times a cell beside a cell of the other
+    /// visibility is traced again as cells half as wide, and why.
+    #[serde(default)]
+    pub boundary_levels: u32,
+    #[serde(default)]
+    pub boundary_reason: String,
     /// (e) Adaptive refinement of the mesh: why, and the vertex count after it.
     #[serde(default)]
     pub refine_reason: String,
@@ -336,6 +342,44 @@ pub fn decide_cell(env: &EnvMap, set: &DirectionSet, tree: &LightTree, origins: 
     (deg, reason, errors)
 }
 
+/// Boundary levels used where (d) finds that the coarsest cells miss shadows.
+pub const BOUNDARY_LEVELS: u32 = 2;
+
+/// (d), second part: how many times cells at a shadow edge are traced again as cells half as wide
+/// ([`crate::bake::CutSettings::boundary_levels`]), and why.
+///
+/// One ray per cell point-samples visibility, so a shadow edge that crosses a cell moves to the cell's
+/// border, and the error does not average out over a light as the irradiance's does: a sharp lobe's
+/// highlight sees it whole. Where the environment's small bright lights made the coarsest candidate miss
+/// its shadows at the probes (the cell decided is finer), their shadow edges are sharp, and the cells
+/// beside a cell of the other visibility are traced at half and at a quarter of the cell's width
+/// ([`BOUNDARY_LEVELS`]). Where the coarsest cell is within tolerance the light is soft and the
+/// refinement is not made (dragon_100k under courtyard_1k: it would double the rays).
+pub fn decide_boundary(explicit: Option<u32>, cell_explicit: bool, traced: bool, cell_deg: f64, probe_errors: &[(f64, f64)]) -> (u32, String) {
+    if let Some(levels) = explicit {
+        return (levels, format!("boundary refinement set explicitly to {levels} level(s)"));
+    }
+    if !traced {
+        return (0, "no boundary refinement: no visibility is traced".into());
+    }
+    if cell_explicit {
+        return (0, "no boundary refinement: the cell size was set explicitly (set the levels too to refine)".into());
+    }
+    let coarsest = CELL_CANDIDATES_DEG[0];
+    match probe_errors.first() {
+        Some(&(deg, error)) if cell_deg < coarsest && error > CELL_TOLERANCE => (
+            BOUNDARY_LEVELS,
+            format!(
+                "cells at shadow edges traced again at {}° and {}°: {deg}° cells missed {:.1} % of the irradiance at the probes, so small bright lights cast sharp shadows, which a ray per cell moves to the cells' borders",
+                cell_deg / 2.0,
+                cell_deg / 4.0,
+                error * 100.0
+            ),
+        ),
+        _ => (0, format!("no boundary refinement: {coarsest}° cells are within {:.0} % at the probes, so the light is soft and shadow edges blur over a cell", CELL_TOLERANCE * 100.0)),
+    }
+}
+
 /// The largest nodes under `root` covering at most `max_leaves` leaves (leaves always qualify), in
 /// leaf order: the visibility cells of that size.
 fn nodes_of_at_most(tree: &LightTree, max_leaves: u32, root: usize) -> Vec<usize> {
@@ -351,4 +395,26 @@ fn nodes_of_at_most(tree: &LightTree, max_leaves: u32, root: usize) -> Vec<usize
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn boundary_refinement_follows_the_cell_decision() {
+        let (coarse, fine) = (CELL_CANDIDATES_DEG[0], CELL_CANDIDATES_DEG[1]);
+        // The coarsest cell missed shadows: sharp lights, refine.
+        let missed = [(coarse, 2.0 * CELL_TOLERANCE), (fine, 0.5 * CELL_TOLERANCE)];
+        assert_eq!(decide_boundary(None, false, true, fine, &missed).0, BOUNDARY_LEVELS);
+        // Within tolerance at the coarsest: soft light, no refinement.
+        let soft = [(coarse, 0.5 * CELL_TOLERANCE), (fine, 0.2 * CELL_TOLERANCE)];
+        assert_eq!(decide_boundary(None, false, true, coarse, &soft).0, 0);
+        // Explicit levels win; no tracing or an explicit cell (no probe) means none.
+        assert_eq!(decide_boundary(Some(1), false, true, coarse, &soft).0, 1);
+        assert_eq!(decide_boundary(None, false, false, coarse, &[]).0, 0);
+        assert_eq!(decide_boundary(None, true, true, fine, &[]).0, 0);
+        let (_, reason) = decide_boundary(None, false, true, fine, &missed);
+        assert!(reason.contains("2.8125°") && reason.contains("1.40625°"), "{reason}");
+    }
 }

@@ -50,11 +50,15 @@ pub struct BakeSettings {
     /// Adaptive refinement of the mesh where visibility changes between vertices (decision (e),
     /// [`refine`]); used by [`Baker::bake_refined`].
     pub refine: RefineSettings,
+    /// Boundary refinement of the visibility cells ([`CutSettings::boundary_levels`]); `None` decides it
+    /// with the cell size (decision (d), [`decisions::decide_boundary`]).
+    #[serde(default)]
+    pub boundary_levels: Option<u32>,
 }
 
 impl Default for BakeSettings {
     fn default() -> Self {
-        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None, refine: RefineSettings::default() }
+        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None, refine: RefineSettings::default(), boundary_levels: None }
     }
 }
 
@@ -188,6 +192,8 @@ pub struct Baker<'a> {
     decision_seconds: f64,
     /// Prefix sums of r Ω d over leaf order for the refinement's criterion ([`refine`]).
     ring_prefix: Vec<DVec3>,
+    /// Which visibility cells border which (boundary refinement, [`CutSettings::boundary_levels`]).
+    cell_neighbours: cuts::CellNeighbours,
 }
 
 impl<'a> Baker<'a> {
@@ -233,7 +239,11 @@ impl<'a> Baker<'a> {
             }
         };
         settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
+        let (boundary_levels, boundary_reason) = decisions::decide_boundary(settings.boundary_levels, settings.cell_deg.is_some(), trace_visibility, cell_deg, &cell_probe_errors);
+        settings.cut.boundary_levels = boundary_levels;
+        settings.boundary_levels = Some(boundary_levels);
         settings.cell_deg = Some(cell_deg);
+        let cell_neighbours = if trace_visibility { cuts::CellNeighbours::new(&set, &tree, settings.cut.cell_leaves, settings.cut.boundary_levels) } else { cuts::CellNeighbours::default() };
         let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
         let ring_prefix = if trace_visibility && settings.refine.rounds > 0 {
             refine::ring_weight_prefix(&tree, crate::light::LightSums::new(env, &set, &tree, 0.0).leaf_radiance())
@@ -252,6 +262,8 @@ impl<'a> Baker<'a> {
             cell_deg,
             cell_reason,
             cell_probe_errors,
+            boundary_levels,
+            boundary_reason,
             refine_reason: String::new(),
             refined_vertices: 0,
         };
@@ -268,6 +280,7 @@ impl<'a> Baker<'a> {
             offset,
             decision_seconds: start.elapsed().as_secs_f64(),
             ring_prefix,
+            cell_neighbours,
         })
     }
 
@@ -298,18 +311,17 @@ impl<'a> Baker<'a> {
     /// gives an empty cut.
     fn bake_points(&self, points: &[Option<(DVec3, DVec3)>], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
         let done = std::sync::atomic::AtomicUsize::new(0);
-        let leaves = self.tree.leaf_count();
         points
             .par_iter()
             .map_init(
-                || CutScratch::new(leaves),
+                || CutScratch::new(self.tree.nodes().len()),
                 |scratch, point| {
                     let cut = if !self.decisions.trace_visibility {
                         // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
                         VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon }
                     } else {
                         match point {
-                            Some((p, n)) => cuts::vertex_cut(*p, *n, self.offset, &self.tree, &self.tracer, &self.settings.cut, scratch),
+                            Some((p, n)) => cuts::vertex_cut(*p, *n, self.offset, &self.tree, &self.tracer, &self.settings.cut, &self.cell_neighbours, scratch),
                             None => VertexCut::default(),
                         }
                     };
