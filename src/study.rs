@@ -119,6 +119,8 @@ struct Knobs {
     max_cut: usize,
     /// Rounds of the bake's adaptive refinement (decision (e)).
     refine_rounds: u32,
+    /// Boundary refinement of the cells; None: decided with the cell (decision (d)).
+    boundary_levels: Option<u32>,
     layout: Option<LobeLayout>,
     sigma: f64,
     fit_size: Option<(u32, u32)>,
@@ -135,6 +137,7 @@ impl Knobs {
             epsilon: b.cut.epsilon,
             max_cut: b.cut.max_cut,
             refine_rounds: b.refine.rounds,
+            boundary_levels: b.boundary_levels,
             layout: None,
             sigma: srbf::PAPER_SIGMA,
             fit_size: None,
@@ -143,7 +146,7 @@ impl Knobs {
         }
     }
     fn bake_key(&self) -> String {
-        format!("{:?}/{:?}/{}/{}/{}", self.resolution, self.cell_deg, self.epsilon, self.max_cut, self.refine_rounds)
+        format!("{:?}/{:?}/{}/{}/{}/{:?}", self.resolution, self.cell_deg, self.epsilon, self.max_cut, self.refine_rounds, self.boundary_levels)
     }
     fn changes_material(&self) -> bool {
         let d = Self::defaults();
@@ -163,7 +166,7 @@ struct BakeResult {
 }
 
 fn run_bake(scene: &Scene, env: &EnvMap, k: &Knobs) -> Result<BakeResult, StudyError> {
-    let mut settings = BakeSettings { resolution: k.resolution, cell_deg: k.cell_deg, ..BakeSettings::default() };
+    let mut settings = BakeSettings { resolution: k.resolution, cell_deg: k.cell_deg, boundary_levels: k.boundary_levels, ..BakeSettings::default() };
     settings.cut.epsilon = k.epsilon;
     settings.cut.max_cut = k.max_cut;
     settings.refine.rounds = k.refine_rounds;
@@ -181,9 +184,9 @@ fn coefficient_slices(m: &Material) -> [&[f64]; 3] {
 }
 
 /// The rows a study sweeps: the defaults, then one knob at a time, then the paper's settings.
-fn settings(quick: bool, anisotropic: bool, decided_resolution: usize, decided_cell: f64) -> Vec<(String, String, Knobs)> {
+fn settings(quick: bool, anisotropic: bool, decided_resolution: usize, decided_cell: f64, decided_boundary: u32) -> Vec<(String, String, Knobs)> {
     let d = Knobs::defaults();
-    let label = format!("all defaults (decided: 6·{decided_resolution}² directions, {decided_cell}° cells)");
+    let label = format!("all defaults (decided: 6·{decided_resolution}² directions, {decided_cell}° cells, {decided_boundary} boundary levels)");
     let mut rows = vec![("default".to_string(), label, d.clone())];
     let mut push = |knob: &str, value: String, k: Knobs| rows.push((knob.to_string(), value, k));
     // (In --quick, one value per knob and no paper row: J = 147 alone costs half a minute.)
@@ -195,6 +198,10 @@ fn settings(quick: bool, anisotropic: bool, decided_resolution: usize, decided_c
     // The visibility cell around the decided one (decision (d)).
     for c in pick(&[22.5, 11.25, 5.625, 2.8125], &[22.5]).into_iter().filter(|&c| c != decided_cell) {
         push("visibility_cell_deg", format!("{c}"), Knobs { cell_deg: Some(c), ..d.clone() });
+    }
+    // Boundary refinement of the cells at shadow edges, around the decided levels (decision (d)).
+    for b in pick(&[0.0, 1.0, 2.0], &[]).into_iter().filter(|&b| b as u32 != decided_boundary) {
+        push("boundary_levels", format!("{b}"), Knobs { boundary_levels: Some(b as u32), ..d.clone() });
     }
     for e in pick(&[0.08, 0.005], &[0.08]) {
         push("cut_epsilon", format!("{e}"), Knobs { epsilon: e, ..d.clone() });
@@ -258,8 +265,9 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
     let anisotropic = base.bake.decisions.anisotropic;
     let decided = base.bake.decisions.resolution;
     let decided_cell = base.bake.decisions.cell_deg;
+    let decided_boundary = base.bake.decisions.boundary_levels;
     bakes.insert(defaults.bake_key(), base);
-    let plan = settings(options.quick, anisotropic, decided, decided_cell);
+    let plan = settings(options.quick, anisotropic, decided, decided_cell, decided_boundary);
     let mut baseline: Option<Material> = None;
     let mut truths: Vec<(Vec<u64>, Image)> = Vec::new();
     let mut fits: HashMap<String, (Material, f64, f64)> = HashMap::new();

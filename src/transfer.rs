@@ -17,7 +17,11 @@
 //! and where it straddles it split by a walk down the tree into sub-ranges above (exact) and the nodes
 //! of ≤ 16 leaves the horizon cuts (clipped whole by a disc model, [`LightTree::split_by_horizon`]). The BRDF is evaluated
 //! at the run's mean direction; only lobes whose support (G > e^-14) can reach the half-vector are
-//! evaluated ([`LobeGrid`]).
+//! evaluated ([`LobeGrid`]). Ring lobes (isotropic sets) depend on the half-vector's polar angle alone
+//! and are read from one table in t = √(1 − cos θh) with linear interpolation, so a run's weight is
+//! split between the two table points it falls between (a histogram per pixel and channel) and each
+//! lobe is the dot product of the histogram with its table row once per pixel: the same sums as
+//! evaluating every lobe per run, regrouped (dragon_100k at 160×120: 12.8 lobes per run).
 //!
 //! Invariants: no ray tracing (visibility comes from the bake; a new view or rotation only re-sums);
 //! pixels are independent, so the result does not depend on the thread count; no IO.
@@ -188,6 +192,8 @@ pub struct TransferContext<'a> {
     shading_nodes: Vec<u32>,
     /// Per shading node, its corner cone (copied from the tree so that runs read them in order).
     shading_cones: Vec<PartitionCone>,
+    /// Ring lobes only: per lobe, the table points [first, last] where it exceeds the cutoff.
+    ring_support: Vec<(usize, usize)>,
 }
 
 impl<'a> TransferContext<'a> {
@@ -200,7 +206,20 @@ impl<'a> TransferContext<'a> {
         let target = shading_angle.unwrap_or(0.25 * sigma).max(1e-6);
         let Partition { ranges: shading, nodes: shading_nodes, .. } = tree.partition(target);
         let shading_cones = shading_nodes.iter().map(|&k| *tree.corner_cone(k as usize)).collect();
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_nodes, shading_cones }
+        let cutoff = (-LOBE_CUTOFF_EXPONENT).exp();
+        let ring_support = if lobes.layout().is_isotropic() {
+            (0..lobes.len())
+                .map(|j| {
+                    let row = lobes.ring_row(j);
+                    let first = row.iter().position(|&g| g > cutoff).unwrap_or(row.len());
+                    let last = row.iter().rposition(|&g| g > cutoff).unwrap_or(0);
+                    (first, last)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), shading, shading_nodes, shading_cones, ring_support }
     }
 
     /// Number of nodes in the shading partition (over the whole sphere).
@@ -237,9 +256,11 @@ impl<'a> TransferContext<'a> {
                 NodeLight { omega: light.omega(a, z), moment: light.moment(a, z), power: light.power(a, z) }
             })
             .collect();
+        let bins = if self.lobes.layout().is_isotropic() { LobeSet::RING_INTERVALS + 1 } else { 0 };
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            .map(|f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count))
+            // Per thread, the ring histogram (3 channels × table points), all zero between pixels.
+            .map_init(|| vec![0.0f64; 3 * bins], |hist, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, hist))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
         let mut t = Vec::with_capacity(results.len() * 3 * j_count);
@@ -253,7 +274,7 @@ impl<'a> TransferContext<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[NodeLight], eye: DVec3, f0: f64, j_count: usize) -> (PixelSample, Vec<f32>, [f64; 3]) {
+    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[NodeLight], eye: DVec3, f0: f64, j_count: usize, hist: &mut [f64]) -> (PixelSample, Vec<f32>, [f64; 3]) {
         let tri = self.mesh.triangles[f.triangle as usize];
         let b = f.bary.map(|x| x as f64);
         let position: DVec3 = (0..3).map(|i| self.mesh.positions[tri[i] as usize].as_dvec3() * b[i]).sum();
@@ -278,6 +299,9 @@ impl<'a> TransferContext<'a> {
         let specular = wo.z > 0.0;
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
         let leaves = self.tree.leaf_count() as u32;
+        let isotropic = self.lobes.layout().is_isotropic();
+        let bins = hist.len() / 3;
+        let (mut k_lo, mut k_hi) = (usize::MAX, 0usize);
         for_each_run(&vertex_spans, &b, &self.shading, leaves, |a, z, vis, si| {
             let whole = self.shading[si] == (a as u32, z as u32);
             let (omega, moment) = if whole { (node_light[si].omega, node_light[si].moment) } else { (light.omega(a, z), light.moment(a, z)) };
@@ -320,24 +344,55 @@ impl<'a> TransferContext<'a> {
             }
             let ws = weight * s;
             let wp = [ws * power[0], ws * power[1], ws * power[2]];
-            let ring = self.lobes.layout().is_isotropic().then(|| self.lobes.ring_position(h));
-            let candidates = match ring {
-                Some((k, _)) => self.grid.ring_candidates(k),
-                None => self.grid.candidates(h),
-            };
-            for &j in candidates {
+            if isotropic {
+                // Σ_j g_j(t) w = Σ_j (a_jk (1 − f) + a_j,k+1 f) w: the weight goes to the two points.
+                let (k, frac) = self.lobes.ring_position(h);
+                for c in 0..3 {
+                    hist[c * bins + k] += wp[c] * (1.0 - frac);
+                    hist[c * bins + k + 1] += wp[c] * frac;
+                }
+                k_lo = k_lo.min(k);
+                k_hi = k_hi.max(k + 1);
+                return;
+            }
+            for &j in self.grid.candidates(h) {
                 let j = j as usize;
-                let g = match ring {
-                    Some(pos) => self.lobes.ring_value(j, pos),
-                    None => self.lobes.eval_one(j, h),
-                };
+                let g = self.lobes.eval_one(j, h);
                 acc[j] += wp[0] * g;
                 acc[j_count + j] += wp[1] * g;
                 acc[2 * j_count + j] += wp[2] * g;
             }
         });
+        if isotropic && k_lo <= k_hi {
+            for (j, &(first, last)) in self.ring_support.iter().enumerate() {
+                let (a, z) = (first.max(k_lo), last.min(k_hi));
+                if a > z {
+                    continue;
+                }
+                let row = &self.lobes.ring_row(j)[a..=z];
+                for c in 0..3 {
+                    acc[c * j_count + j] += dot(&hist[c * bins + a..=c * bins + z], row);
+                }
+            }
+            for c in 0..3 {
+                hist[c * bins + k_lo..=c * bins + k_hi].fill(0.0);
+            }
+        }
         (sample, acc.iter().map(|&x| x as f32).collect(), e)
     }
+}
+
+/// Σ a_i b_i with four partial sums (so that it vectorises).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    let mut s = [0.0f64; 4];
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            s[i] += x[i] * y[i];
+        }
+    }
+    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
 #[cfg(test)]

@@ -209,6 +209,22 @@ fn boundary_refinement_resolves_shadow_edges_for_a_fraction_of_the_rays() {
     // most half the rays of tracing every direction.
     assert!(runs[2].0 - every < 0.35 * (runs[0].0 - every), "two levels: {} vs {} unrefined, {} every direction", runs[2].0, runs[0].0, every);
     assert!(2 * runs[2].1 < every_rays, "{} rays vs {every_rays}", runs[2].1);
+    // Under the studio's lights (decided: two levels) every cut still partitions the leaves above the
+    // horizon: disjoint nodes in leaf order, values in [0, 1].
+    let bunny = glint::scene::import(&common::assets().join("glb/bunny.glb")).unwrap();
+    let studio = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let baker = Baker::new(&bunny, &studio, BakeSettings::default()).unwrap();
+    assert_eq!(baker.decisions.boundary_levels, glint::bake::decisions::BOUNDARY_LEVELS);
+    let bake = baker.bake_all(None, &|_| {});
+    for v in 0..bake.cuts.vertex_count() {
+        let mut end = 0u32;
+        for (k, vis) in bake.cuts.cut(v) {
+            let node = baker.tree.nodes()[k as usize];
+            assert!(node.first >= end, "vertex {v}: node {k} overlaps or is out of order");
+            assert!((0.0..=1.0).contains(&vis), "vertex {v}: V = {vis}");
+            end = node.first + node.count;
+        }
+    }
 }
 
 /// An explicit cell size is used as given and a bad one is refused in one line.

@@ -78,22 +78,24 @@ pub struct VertexCut {
     pub epsilon_used: f64,
 }
 
-/// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by tree node
-/// (generation-stamped so that nothing is cleared between vertices).
+/// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by (refinement level,
+/// the cell's first leaf) (generation-stamped so that nothing is cleared between vertices).
 pub struct CutScratch {
     stamp: Vec<u32>,
     visible: Vec<bool>,
     /// Cells marked for boundary refinement (stamped with the generation).
     refine: Vec<u32>,
-    /// Cells traced for the current vertex: (node, cell size).
+    /// Cells traced for the current vertex (boundary refinement only): (node, cell size).
     traced: Vec<(u32, u32)>,
     generation: u32,
 }
 
 impl CutScratch {
-    /// Scratch for a tree with `nodes` nodes ([`LightTree::nodes`]).
-    pub fn new(nodes: usize) -> Self {
-        Self { stamp: vec![0; nodes], visible: vec![false; nodes], refine: vec![0; nodes], traced: Vec::new(), generation: 0 }
+    /// Scratch for a tree with `leaves` leaves and cuts with `boundary_levels` levels of boundary
+    /// refinement.
+    pub fn new(leaves: usize, boundary_levels: u32) -> Self {
+        let n = leaves * (boundary_levels as usize + 1);
+        Self { stamp: vec![0; n], visible: vec![false; n], refine: vec![0; n], traced: Vec::new(), generation: 0 }
     }
 
     fn next_vertex(&mut self) {
@@ -212,17 +214,20 @@ impl CellNeighbours {
 /// Marks for refinement each cell traced at size `cell` (entries of `scratch.traced` from `from` on)
 /// that has a traced neighbour of the other visibility: a shadow edge runs through or beside it.
 /// Returns whether any was marked.
-fn mark_boundaries(scratch: &mut CutScratch, neighbours: &CellNeighbours, cell: u32, from: usize) -> bool {
+fn mark_boundaries(ctx: &mut Ctx, neighbours: &CellNeighbours, cell: usize, from: usize) -> bool {
+    let (tree, base) = (ctx.tree, ctx.key(0, cell));
+    let key = |k: u32| base + tree.nodes()[k as usize].first as usize;
+    let scratch = &mut *ctx.scratch;
     let generation = scratch.generation;
     let mut any = false;
     for i in from..scratch.traced.len() {
         let (k, c) = scratch.traced[i];
-        if c != cell {
+        if c as usize != cell {
             continue;
         }
-        let v = scratch.visible[k as usize];
-        if neighbours.of(k as usize).iter().any(|&m| scratch.stamp[m as usize] == generation && scratch.visible[m as usize] != v) {
-            scratch.refine[k as usize] = generation;
+        let v = scratch.visible[key(k)];
+        if neighbours.of(k as usize).iter().any(|&m| scratch.stamp[key(m)] == generation && scratch.visible[key(m)] != v) {
+            scratch.refine[key(k)] = generation;
             any = true;
         }
     }
@@ -267,7 +272,7 @@ pub fn vertex_cut(
     // cells half as wide, then the cut is rebuilt (cached rays and cone answers are reused).
     let (mut cell, mut from) = (top, 0);
     for _ in 0..ctx.boundary_levels {
-        if cell < 4 || !mark_boundaries(ctx.scratch, neighbours, cell as u32, from) {
+        if cell < 4 || !mark_boundaries(&mut ctx, neighbours, cell, from) {
             break;
         }
         from = ctx.scratch.traced.len();
@@ -283,6 +288,19 @@ pub fn vertex_cut(
         build(&mut ctx, 0, false, top, &mut entries);
     }
     VertexCut { entries, rays: ctx.rays, epsilon_used: ctx.epsilon }
+}
+
+impl Ctx<'_> {
+    /// Scratch key of the cell of size `cell` whose first leaf is `first`: cells of different
+    /// refinement levels may share a first leaf.
+    #[inline]
+    fn key(&self, first: u32, cell: usize) -> usize {
+        if cell >= self.cell_leaves {
+            return first as usize;
+        }
+        let level = ((self.cell_leaves / cell.max(1)).max(1).trailing_zeros() / 2) as usize;
+        level * self.tree.leaf_count() + first as usize
+    }
 }
 
 /// Σ_i Ω_i c_i over the node's leaves, with Ω_i c_i = max(moment_i·n, 0) (exact for a leaf wholly above
@@ -310,7 +328,8 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     let wholly_above = cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
     // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a quarter
     // of its leaves instead.
-    let cell = if known && node.count as usize <= cell && !node.is_leaf() && ctx.scratch.refine[k] == ctx.scratch.generation { (cell / 4).max(1) } else { cell };
+    let refined = ctx.boundary_levels > 0 && known && node.count as usize <= cell && !node.is_leaf() && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
+    let cell = if refined { (cell / 4).max(1) } else { cell };
     if node.is_leaf() || (known && node.count as usize <= cell) {
         // A visibility cell: one ray along its mean direction (cached), V ∈ {0, 1} over the cell.
         let w = if wholly_above { node.moment.dot(ctx.n) } else { cosine_mass(ctx.tree, k, ctx.n) };
@@ -375,16 +394,19 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
 /// Visibility of a cell (tree node `k`, of cell size `cell`) along its mean direction, traced once per
 /// vertex and cached.
 fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::TreeNode) -> bool {
+    let key = ctx.key(node.first, cell);
     let s = &mut *ctx.scratch;
-    if s.stamp[k] == s.generation {
-        return s.visible[k];
+    if s.stamp[key] == s.generation {
+        return s.visible[key];
     }
-    s.traced.push((k as u32, cell as u32));
+    if ctx.boundary_levels > 0 {
+        s.traced.push((k as u32, cell as u32));
+    }
     let d = node.mean_direction;
     let visible = !ctx.tracer.occluded(ctx.apex, d.as_vec3().into());
     ctx.rays += 1;
-    s.stamp[k] = s.generation;
-    s.visible[k] = visible;
+    s.stamp[key] = s.generation;
+    s.visible[key] = visible;
     visible
 }
 

@@ -314,7 +314,7 @@ impl<'a> Baker<'a> {
         points
             .par_iter()
             .map_init(
-                || CutScratch::new(self.tree.nodes().len()),
+                || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
                 |scratch, point| {
                     let cut = if !self.decisions.trace_visibility {
                         // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.

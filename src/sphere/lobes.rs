@@ -229,6 +229,13 @@ impl LobeSet {
         a + (b - a) * f
     }
 
+    /// Ring lobe j's table: its values at t = k / [`Self::RING_INTERVALS`], k = 0 ..= RING_INTERVALS
+    /// (empty for other layouts). [`Self::ring_value`] interpolates it linearly.
+    pub fn ring_row(&self, j: usize) -> &[f64] {
+        let n = RING_TABLE + 1;
+        self.ring_table.get(j * n..(j + 1) * n).unwrap_or(&[])
+    }
+
     /// Lobe j at h by the closed form (no table).
     pub fn eval_exact(&self, j: usize, h: DVec3) -> f64 {
         self.eval_exact_lambda(j, h, self.lambda)
