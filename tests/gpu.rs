@@ -68,7 +68,7 @@ fn compare(ctx: &GpuContext, mesh: &str) {
     // preview uses (gpu::MAX_PARTITION_DEG, narrower than the CPU frame's default).
     // The CPU frame set to evaluate what the shader evaluates: every leaf the horizon cuts clipped, p read
     // from the 2D texels.
-    let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg: glint::gpu::MAX_PARTITION_DEG, horizon_leaves: 0, texel_lookups: true, ..PrtSettings::default() };
+    let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg: glint::gpu::MAX_PARTITION_DEG, horizon_leaves: 0, texel_lookups: true, merge_runs: false, ..PrtSettings::default() };
     let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings);
     let mut gpu = GpuPreview::new(ctx, &scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings).unwrap();
     gpu.set_material(m.rho_d, m.f0, Some(&table)).unwrap();
