@@ -27,7 +27,7 @@
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::static_term;
+use crate::brdf::dbrdf::{static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::scene::{Camera, Mesh};
@@ -259,7 +259,8 @@ impl<'a> TransferContext<'a> {
         let bins = if self.lobes.layout().is_isotropic() { LobeSet::RING_INTERVALS + 1 } else { 0 };
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            // Per thread, the ring histogram (3 channels × table points), all zero between pixels.
+            // Per thread, the ring histogram (table points × 3 channels, interleaved), all zero between
+            // pixels.
             .map_init(|| vec![0.0f64; 3 * bins], |hist, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, hist))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
@@ -290,7 +291,8 @@ impl<'a> TransferContext<'a> {
             }
             None => Frame::from_normal(normal),
         };
-        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(normal));
+        let wo_world = (eye - position).try_normalize().unwrap_or(normal);
+        let wo = frame.to_local(wo_world);
         let sample = PixelSample { x: f.x, y: f.y, triangle: f.triangle, bary: f.bary, position: position.as_vec3(), normal: normal.as_vec3() };
         let mut acc = vec![0.0f64; 3 * j_count];
         let mut e = [0.0f64; 3];
@@ -300,7 +302,6 @@ impl<'a> TransferContext<'a> {
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
         let leaves = self.tree.leaf_count() as u32;
         let isotropic = self.lobes.layout().is_isotropic();
-        let bins = hist.len() / 3;
         let (mut k_lo, mut k_hi) = (usize::MAX, 0usize);
         for_each_run(&vertex_spans, &b, &self.shading, leaves, |a, z, vis, si| {
             let whole = self.shading[si] == (a as u32, z as u32);
@@ -333,8 +334,38 @@ impl<'a> TransferContext<'a> {
             for c in 0..3 {
                 e[c] += weight * power[c];
             }
+            if !specular {
+                return;
+            }
+            if isotropic {
+                // Ring lobes need only h·n: from wi·n, wo·n and wi·wo, with |wi + wo| = √(2 + 2 wi·wo)
+                // (no local frame, one square root).
+                let k1 = dir.dot(normal);
+                let c = dir.dot(wo_world);
+                let len2 = 2.0 + 2.0 * c;
+                if k1 <= 0.0 || !(len2 > 1e-24) {
+                    return;
+                }
+                let inv = 1.0 / len2.sqrt();
+                let s = static_term_parts(k1, wo.z, (1.0 + c) * inv, f0);
+                if s <= 0.0 {
+                    return;
+                }
+                let ws = weight * s;
+                // Σ_j g_j(t) w = Σ_j (a_jk (1 − f) + a_j,k+1 f) w: the weight goes to the two points.
+                let (k, frac) = self.lobes.ring_position(DVec3::new(0.0, 0.0, (k1 + wo.z) * inv));
+                let (below, above) = (ws * (1.0 - frac), ws * frac);
+                let b = 3 * k;
+                for c in 0..3 {
+                    hist[b + c] += below * power[c];
+                    hist[b + 3 + c] += above * power[c];
+                }
+                k_lo = k_lo.min(k);
+                k_hi = k_hi.max(k + 1);
+                return;
+            }
             let wi = frame.to_local(dir);
-            if !specular || wi.z <= 0.0 {
+            if wi.z <= 0.0 {
                 return;
             }
             let s = static_term(wi, wo, f0);
@@ -344,17 +375,6 @@ impl<'a> TransferContext<'a> {
             }
             let ws = weight * s;
             let wp = [ws * power[0], ws * power[1], ws * power[2]];
-            if isotropic {
-                // Σ_j g_j(t) w = Σ_j (a_jk (1 − f) + a_j,k+1 f) w: the weight goes to the two points.
-                let (k, frac) = self.lobes.ring_position(h);
-                for c in 0..3 {
-                    hist[c * bins + k] += wp[c] * (1.0 - frac);
-                    hist[c * bins + k + 1] += wp[c] * frac;
-                }
-                k_lo = k_lo.min(k);
-                k_hi = k_hi.max(k + 1);
-                return;
-            }
             for &j in self.grid.candidates(h) {
                 let j = j as usize;
                 let g = self.lobes.eval_one(j, h);
@@ -370,29 +390,20 @@ impl<'a> TransferContext<'a> {
                     continue;
                 }
                 let row = &self.lobes.ring_row(j)[a..=z];
-                for c in 0..3 {
-                    acc[c * j_count + j] += dot(&hist[c * bins + a..=c * bins + z], row);
+                let (mut s0, mut s1, mut s2) = (0.0f64, 0.0f64, 0.0f64);
+                for (t, r) in hist[3 * a..3 * z + 3].chunks_exact(3).zip(row) {
+                    s0 += t[0] * r;
+                    s1 += t[1] * r;
+                    s2 += t[2] * r;
                 }
+                acc[j] += s0;
+                acc[j_count + j] += s1;
+                acc[2 * j_count + j] += s2;
             }
-            for c in 0..3 {
-                hist[c * bins + k_lo..=c * bins + k_hi].fill(0.0);
-            }
+            hist[3 * k_lo..3 * k_hi + 3].fill(0.0);
         }
         (sample, acc.iter().map(|&x| x as f32).collect(), e)
     }
-}
-
-/// Σ a_i b_i with four partial sums (so that it vectorises).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    let mut s = [0.0f64; 4];
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            s[i] += x[i] * y[i];
-        }
-    }
-    (s[0] + s[1]) + (s[2] + s[3]) + tail
 }
 
 #[cfg(test)]
