@@ -179,8 +179,8 @@ impl CellNeighbours {
                 for k in cells {
                     let node = nodes[k];
                     let list = &mut lists[k];
-                    for leaf in node.first as usize..(node.first + node.count) as usize {
-                        for &nb in &adjacent[leaf] {
+                    for around in &adjacent[node.first as usize..(node.first + node.count) as usize] {
+                        for &nb in around {
                             let m = cell_of_leaf[nb as usize];
                             if m != k as u32 && !list.contains(&m) {
                                 list.push(m);
@@ -238,6 +238,7 @@ fn mark_boundaries(ctx: &mut Ctx, neighbours: &CellNeighbours, cell: usize, from
 type Sums = (f64, f64, f64);
 
 /// The cut of one vertex at `position` with unit `normal`.
+#[allow(clippy::too_many_arguments)]
 pub fn vertex_cut(
     position: DVec3,
     normal: DVec3,

@@ -390,8 +390,8 @@ impl<'a> Prt<'a> {
         self.for_each_lit_piece(corners, n, light, spreads, |si, vis_cos_power, lum_moment, vis, _| {
             match pending.as_mut() {
                 Some(p) if p.0 == si => {
-                    for c in 0..3 {
-                        p.1[c] += vis_cos_power[c];
+                    for (sum, x) in p.1.iter_mut().zip(vis_cos_power) {
+                        *sum += x;
                     }
                     p.2 += vis * lum_moment.0;
                     p.3 += vis * lum_moment.1;
