@@ -164,17 +164,10 @@ impl CellNeighbours {
                 if size < 4 {
                     break;
                 }
-                let mut cells = Vec::new();
-                let mut stack = vec![0usize];
-                while let Some(k) = stack.pop() {
+                let cells = super::decisions::nodes_of_at_most(tree, size as u32, 0);
+                for &k in &cells {
                     let node = nodes[k];
-                    if node.count as usize <= size || node.is_leaf() {
-                        cell_of_leaf[node.first as usize..(node.first + node.count) as usize].fill(k as u32);
-                        cells.push(k);
-                    } else {
-                        stack.push(node.left as usize);
-                        stack.push(node.right as usize);
-                    }
+                    cell_of_leaf[node.first as usize..(node.first + node.count) as usize].fill(k as u32);
                 }
                 for k in cells {
                     let node = nodes[k];
@@ -427,16 +420,7 @@ mod tests {
         let texel = set.texel_angle();
         for size in [16usize, 4] {
             // The cells of this size: the largest nodes of at most `size` leaves.
-            let mut cells = Vec::new();
-            let mut stack = vec![0usize];
-            while let Some(k) = stack.pop() {
-                if nodes[k].count as usize <= size || nodes[k].is_leaf() {
-                    cells.push(k);
-                } else {
-                    stack.push(nodes[k].left as usize);
-                    stack.push(nodes[k].right as usize);
-                }
-            }
+            let cells = crate::bake::decisions::nodes_of_at_most(&tree, size as u32, 0);
             let leaves = |k: usize| (nodes[k].first..nodes[k].first + nodes[k].count).map(|l| tree.leaf_directions()[l as usize]).collect::<Vec<_>>();
             let mut listed = 0;
             for &a in &cells {

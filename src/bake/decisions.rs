@@ -382,7 +382,7 @@ pub fn decide_boundary(explicit: Option<u32>, cell_explicit: bool, traced: bool,
 
 /// The largest nodes under `root` covering at most `max_leaves` leaves (leaves always qualify), in
 /// leaf order: the visibility cells of that size.
-fn nodes_of_at_most(tree: &LightTree, max_leaves: u32, root: usize) -> Vec<usize> {
+pub(crate) fn nodes_of_at_most(tree: &LightTree, max_leaves: u32, root: usize) -> Vec<usize> {
     let nodes = tree.nodes();
     let (mut out, mut stack) = (Vec::new(), vec![root]);
     while let Some(k) = stack.pop() {
