@@ -175,6 +175,10 @@ struct BakeArgs {
     /// Split an edge when its ends' visibility differs by more than this fraction of the irradiance.
     #[arg(long, default_value_t = glint::bake::RefineSettings::default().threshold)]
     refine_threshold: f64,
+    /// Trace every vertex (no vertex sampling: by default a vertex of a dense mesh whose traced
+    /// neighbours agree within the refine threshold is interpolated from them).
+    #[arg(long)]
+    trace_every_vertex: bool,
     /// Cap on the nodes of one vertex's cut.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().max_cut)]
     max_cut: usize,
@@ -313,7 +317,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         cut: CutSettings { epsilon: args.epsilon, max_cut: args.max_cut, trace_leaves: args.trace_leaves, cell_leaves: 1, ..CutSettings::default() },
         cell_deg: args.cell_deg,
         boundary_levels: args.boundary_levels,
-        refine: glint::bake::RefineSettings { rounds: args.refine_rounds, threshold: args.refine_threshold, ..glint::bake::RefineSettings::default() },
+        refine: glint::bake::RefineSettings { rounds: args.refine_rounds, threshold: args.refine_threshold, interpolate: !args.trace_every_vertex, ..glint::bake::RefineSettings::default() },
         ..BakeSettings::default()
     };
     if !(args.refine_threshold >= 0.0 && args.refine_threshold.is_finite()) {
@@ -421,6 +425,7 @@ fn bake(args: &BakeArgs) -> Result<()> {
         println!("decision: visibility cells of {}° — {}", d.cell_deg, d.cell_reason);
         println!("decision: {} — {}", if d.boundary_levels > 0 { format!("{} boundary level(s)", d.boundary_levels) } else { "no boundary refinement".into() }, d.boundary_reason);
         println!("decision: {} — {}", if !refinement.is_empty() { "refined mesh" } else { "mesh as it is" }, d.refine_reason);
+        println!("decision: {} — {}", if d.interpolated_vertices > 0 { "vertex sampling" } else { "every vertex traced" }, d.sampling_reason);
         println!(
             "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s ({:.2} s deciding)",
             s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds, s.decision_seconds

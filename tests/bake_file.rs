@@ -105,11 +105,10 @@ fn baking_the_view_first_gives_the_same_transfer() {
     let first = visible_vertices(&scene.mesh, camera, 160, 120);
     assert!(!first.is_empty() && first.len() < scene.mesh.positions.len(), "{} of {}", first.len(), scene.mesh.positions.len());
     // Only the view's vertices: the others get empty cuts (not needed by this view).
-    let partial_cuts = baker.bake_vertices(&first, &|_| {});
+    // As the app does it ([`Baker::bake_set`], with vertex sampling).
     let mut per_vertex = vec![Default::default(); scene.mesh.positions.len()];
-    for (&v, c) in first.iter().zip(partial_cuts) {
-        per_vertex[v as usize] = c;
-    }
+    let mut baked = vec![false; scene.mesh.positions.len()];
+    baker.bake_set(&first, &mut per_vertex, &mut baked, &|_| {});
     let partial = Cuts::from_vertex_cuts(&per_vertex);
     let full = baker.bake_all(None, &|_| {});
     let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();

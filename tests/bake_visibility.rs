@@ -241,3 +241,88 @@ fn explicit_and_invalid_cell_sizes() {
         assert!(err.contains("cell") && !err.contains('\n'), "{err}");
     }
 }
+
+/// Vertex sampling (decision (f)) on the dense dragon_100k under courtyard (default settings): at 400
+/// vertices spread over the mesh, each cut's visibility against a ray per leaf direction (brute
+/// force), as the luminance- and cosine-weighted mean |V − V_true| over the hemisphere. Interpolated
+/// vertices must be about as close to the truth as tracing them would have been, and baking a set in
+/// two parts must give what one part gives (the app bakes the view's vertices first).
+#[test]
+fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
+    use glam::Vec3A;
+    let scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
+    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr")).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let mut every = BakeSettings::default();
+    every.refine.interpolate = false;
+    let tracing = Baker::new(&scene, &env, every).unwrap();
+    let tree = &baker.tree;
+    let light = glint::light::LightSums::new(&env, &baker.set, tree, 0.0);
+    let luminance: Vec<f64> = light.leaf_radiance().iter().map(|c| (c[0] + c[1] + c[2]) / 3.0).collect();
+    let n = scene.mesh.positions.len();
+    let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
+    let mut per_vertex = vec![glint::bake::VertexCut::default(); n];
+    let mut baked = vec![false; n];
+    baker.bake_set(&sample, &mut per_vertex, &mut baked, &|_| {});
+    let traced = tracing.bake_vertices(&sample, &|_| {});
+    // Weighted |V − V_true| and the weighted irradiance, per sample vertex.
+    let error = |v: u32, entries: &[(u32, f32)]| -> (f64, f64) {
+        let (origin, normal) = baker.ray_origin(v as usize).unwrap();
+        let mut leaf_v = vec![0.0f32; tree.leaf_count()];
+        for &(k, value) in entries {
+            let node = tree.nodes()[k as usize];
+            leaf_v[node.first as usize..(node.first + node.count) as usize].fill(value);
+        }
+        let (mut wrong, mut total) = (0.0, 0.0);
+        for l in 0..tree.leaf_count() {
+            let d = tree.leaf_directions()[l];
+            let w = luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0);
+            if w <= 0.0 {
+                continue;
+            }
+            let truth = if baker.tracer.occluded(origin.as_vec3().into(), Vec3A::from(d.as_vec3())) { 0.0 } else { 1.0 };
+            wrong += w * (leaf_v[l] as f64 - truth).abs();
+            total += w;
+        }
+        (wrong, total)
+    };
+    let (mut interpolated, mut e_interp, mut e_traced_there, mut w_interp) = (0, 0.0, 0.0, 0.0);
+    let (mut e_all, mut e_all_traced, mut w_all) = (0.0, 0.0, 0.0);
+    for (i, &v) in sample.iter().enumerate() {
+        let cut = &per_vertex[v as usize];
+        let (e, w) = error(v, &cut.entries);
+        let (et, _) = error(v, &traced[i].entries);
+        (e_all, e_all_traced, w_all) = (e_all + e, e_all_traced + et, w_all + w);
+        if cut.interpolated {
+            assert_eq!(cut.rays, 0);
+            interpolated += 1;
+            (e_interp, e_traced_there, w_interp) = (e_interp + e, e_traced_there + et, w_interp + w);
+        } else {
+            assert_eq!(cut.entries, traced[i].entries, "vertex {v}: traced, so as tracing gives");
+        }
+    }
+    let (e_interp, e_traced_there) = (e_interp / w_interp, e_traced_there / w_interp);
+    let (e_all, e_all_traced) = (e_all / w_all, e_all_traced / w_all);
+    println!(
+        "{interpolated} of {} sample vertices interpolated: error there {:.2} % (traced: {:.2} %); all {:.2} % (every vertex traced: {:.2} %)",
+        sample.len(),
+        e_interp * 100.0,
+        e_traced_there * 100.0,
+        e_all * 100.0,
+        e_all_traced * 100.0
+    );
+    // Measured: 18 % of the vertices interpolated; 1.2 % there against 1.0 % traced; 2.95 % against 2.90 %.
+    assert!(interpolated >= sample.len() / 10, "only {interpolated} interpolated");
+    assert!(e_interp <= 1.5 * e_traced_there + 0.005, "interpolated {e_interp} against traced {e_traced_there}");
+    assert!(e_all <= 1.05 * e_all_traced, "all {e_all} against {e_all_traced}");
+    // The same set in two parts, in another order: the same cuts.
+    let mut again = vec![glint::bake::VertexCut::default(); n];
+    let mut baked_again = vec![false; n];
+    let (a, b) = sample.split_at(sample.len() / 3);
+    let reversed: Vec<u32> = b.iter().rev().copied().collect();
+    baker.bake_set(&reversed, &mut again, &mut baked_again, &|_| {});
+    baker.bake_set(a, &mut again, &mut baked_again, &|_| {});
+    for &v in &sample {
+        assert_eq!(again[v as usize], per_vertex[v as usize], "vertex {v} depends on how the set was split");
+    }
+}

@@ -404,7 +404,7 @@ fn refine_study() {
         let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
         let mut settings = BakeSettings::default();
-        settings.refine = glint::bake::RefineSettings { rounds, threshold, min_edge: 1.0 / inv_edge };
+        settings.refine = glint::bake::RefineSettings { rounds, threshold, min_edge: 1.0 / inv_edge, ..Default::default() };
         settings.cell_deg = f.get(4).and_then(|x| x.parse().ok());
         let t0 = std::time::Instant::now();
         let baker = Baker::new(&scene, &env, settings).unwrap();

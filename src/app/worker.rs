@@ -284,6 +284,9 @@ fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
 fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, cancel: &std::sync::atomic::AtomicBool) {
     let n = baker.scene().mesh.positions.len();
     let mut per_vertex = vec![VertexCut::default(); n];
+    // Vertices already baked: those of the first view and the traced neighbours they needed (vertex
+    // sampling, decision (f)) are not baked again with the rest, and the result is the CLI's.
+    let mut baked = vec![false; n];
     let mut is_first = vec![false; n];
     for &v in first {
         if let Some(f) = is_first.get_mut(v as usize) {
@@ -292,27 +295,21 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
     }
     let rest: Vec<u32> = (0..n as u32).filter(|&v| !is_first[v as usize]).collect();
     let pool = bake_pool();
-    let mut done = 0;
     for (phase, vertices) in [("first view", first), ("all vertices", rest.as_slice())] {
         for chunk in vertices.chunks(4096) {
             if cancel.load(std::sync::atomic::Ordering::Relaxed) {
                 return;
             }
-            let bake = || {
-                baker.bake_vertices(chunk, &|k| {
-                    let _ = tx.send(Msg::Progress { done: done + k, total: n, phase });
+            let done = baked.iter().filter(|&&b| b).count();
+            let mut bake = || {
+                baker.bake_set(chunk, &mut per_vertex, &mut baked, &|k| {
+                    let _ = tx.send(Msg::Progress { done: (done + k).min(n), total: n, phase });
                 })
             };
-            let cuts = match &pool {
+            match &pool {
                 Some(pool) => pool.install(bake),
                 None => bake(),
-            };
-            for (&v, cut) in chunk.iter().zip(cuts) {
-                if let Some(slot) = per_vertex.get_mut(v as usize) {
-                    *slot = cut;
-                }
             }
-            done += chunk.len();
         }
         if tx.send(Msg::Cuts { cuts: Cuts::from_vertex_cuts(&per_vertex), complete: false, bake_secs: start.elapsed().as_secs_f64(), refined: None }).is_err() {
             return;

@@ -73,6 +73,11 @@ pub struct Decisions {
     pub refine_reason: String,
     #[serde(default)]
     pub refined_vertices: usize,
+    /// (f) Vertex sampling: why, and how many of the scene's vertices were interpolated, not traced.
+    #[serde(default)]
+    pub sampling_reason: String,
+    #[serde(default)]
+    pub interpolated_vertices: usize,
 }
 
 /// (a): (trace?, reason).

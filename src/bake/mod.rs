@@ -16,6 +16,7 @@ pub mod decisions;
 pub mod file;
 pub mod refine;
 pub mod runs;
+pub mod sparse;
 pub mod tracer;
 
 use crate::env::EnvMap;
@@ -194,6 +195,10 @@ pub struct Baker<'a> {
     ring_prefix: Vec<DVec3>,
     /// Which visibility cells border which (boundary refinement, [`CutSettings::boundary_levels`]).
     cell_neighbours: cuts::CellNeighbours,
+    /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced; empty
+    /// when every vertex is traced.
+    vertex_neighbours: Vec<Vec<u32>>,
+    sampled: Vec<bool>,
 }
 
 impl<'a> Baker<'a> {
@@ -245,7 +250,7 @@ impl<'a> Baker<'a> {
         settings.cell_deg = Some(cell_deg);
         let cell_neighbours = if trace_visibility { cuts::CellNeighbours::new(&set, &tree, settings.cut.cell_leaves, settings.cut.boundary_levels) } else { cuts::CellNeighbours::default() };
         let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
-        let ring_prefix = if trace_visibility && settings.refine.rounds > 0 {
+        let ring_prefix = if trace_visibility && (settings.refine.rounds > 0 || settings.refine.interpolate) {
             refine::ring_weight_prefix(&tree, crate::light::LightSums::new(env, &set, &tree, 0.0).leaf_radiance())
         } else {
             Vec::new()
@@ -266,6 +271,15 @@ impl<'a> Baker<'a> {
             boundary_reason,
             refine_reason: String::new(),
             refined_vertices: 0,
+            sampling_reason: String::new(),
+            interpolated_vertices: 0,
+        };
+        let (vertex_neighbours, sampled) = if trace_visibility && settings.refine.interpolate {
+            let neighbours = sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
+            let sampled = sparse::sampled_vertices(&neighbours);
+            (neighbours, sampled)
+        } else {
+            (Vec::new(), Vec::new())
         };
         Ok(Self {
             scene,
@@ -281,7 +295,28 @@ impl<'a> Baker<'a> {
             decision_seconds: start.elapsed().as_secs_f64(),
             ring_prefix,
             cell_neighbours,
+            vertex_neighbours,
+            sampled,
         })
+    }
+
+    /// Decision (f) in words, given how many vertices were interpolated.
+    fn sampling_reason(&self, interpolated: usize) -> String {
+        let n = self.positions.len();
+        if !self.decisions.trace_visibility {
+            return "no visibility is traced: nothing to sample".into();
+        }
+        if self.sampled.len() != n {
+            return "every vertex traced (vertex sampling off)".into();
+        }
+        let sampled = self.sampled.iter().filter(|&&s| s).count();
+        format!(
+            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced",
+            self.settings.refine.min_edge,
+            self.settings.refine.threshold,
+            sparse::MAX_NORMAL_DEG,
+            n - sampled - interpolated
+        )
     }
 
     /// (ray origin, unit normal) of vertex v: the point rays start from (offset along the normal).
@@ -318,7 +353,7 @@ impl<'a> Baker<'a> {
                 |scratch, point| {
                     let cut = if !self.decisions.trace_visibility {
                         // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
-                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon }
+                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon, interpolated: false }
                     } else {
                         match point {
                             Some((p, n)) => cuts::vertex_cut(*p, *n, self.offset, &self.tree, &self.tracer, &self.settings.cut, &self.cell_neighbours, scratch),
@@ -341,14 +376,82 @@ impl<'a> Baker<'a> {
         let n = self.positions.len();
         let default_order: Vec<u32> = (0..n as u32).collect();
         let order = order.unwrap_or(&default_order);
-        let baked = self.bake_vertices(order, progress);
         let mut per_vertex = vec![VertexCut::default(); n];
-        for (&v, cut) in order.iter().zip(baked) {
-            if let Some(slot) = per_vertex.get_mut(v as usize) {
-                *slot = cut;
+        let mut baked = vec![false; n];
+        self.bake_set(order, &mut per_vertex, &mut baked, progress);
+        per_vertex
+    }
+
+    /// Bakes the vertices of `vertices` not yet `baked` into `per_vertex` (both of the scene's vertex
+    /// count), with vertex sampling (decision (f), [`sparse`]): the sampled vertices among them and the
+    /// sampled neighbours the others need are traced first, then each other vertex is interpolated where
+    /// the rule allows and traced where it does not. The result does not depend on how the vertices are
+    /// split between calls or ordered. `progress` gets the number of vertices finished in this call.
+    pub fn bake_set(&self, vertices: &[u32], per_vertex: &mut [VertexCut], baked: &mut [bool], progress: &(dyn Fn(usize) + Sync)) {
+        let n = self.positions.len().min(per_vertex.len()).min(baked.len());
+        let todo: Vec<u32> = vertices.iter().copied().filter(|&v| (v as usize) < n && !baked[v as usize]).collect();
+        let store = |list: &[u32], cuts: Vec<VertexCut>, per_vertex: &mut [VertexCut], baked: &mut [bool]| {
+            for (&v, cut) in list.iter().zip(cuts) {
+                per_vertex[v as usize] = cut;
+                baked[v as usize] = true;
+            }
+        };
+        if self.sampled.len() != n {
+            let cuts = self.bake_vertices(&todo, progress);
+            store(&todo, cuts, per_vertex, baked);
+            return;
+        }
+        // 1. The sampled vertices: those of `todo`, then the sampled neighbours of the others.
+        let mut first: Vec<u32> = todo.iter().copied().filter(|&v| self.sampled[v as usize]).collect();
+        let own = first.len();
+        let mut wanted = vec![false; n];
+        first.iter().for_each(|&v| wanted[v as usize] = true);
+        for &v in &todo {
+            for &u in &self.vertex_neighbours[v as usize] {
+                if self.sampled[u as usize] && !baked[u as usize] && !wanted[u as usize] {
+                    wanted[u as usize] = true;
+                    first.push(u);
+                }
             }
         }
-        per_vertex
+        let cuts = self.bake_vertices(&first, &|k| progress(k.min(own)));
+        store(&first, cuts, per_vertex, baked);
+        // 2. The others: interpolated, or traced.
+        let rest: Vec<u32> = todo.iter().copied().filter(|&v| !baked[v as usize]).collect();
+        let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
+        let threshold = self.settings.refine.threshold;
+        let epsilon = self.settings.cut.epsilon;
+        let blended: Vec<Option<VertexCut>> = {
+            let per_vertex: &[VertexCut] = per_vertex;
+            let cut_of = |u: usize| per_vertex[u].entries.as_slice();
+            rest.par_iter()
+                .map(|&v| {
+                    let v = v as usize;
+                    let weights = sparse::interpolation_weights(v, &self.positions, &self.normals, &self.vertex_neighbours, &self.sampled, max_edge, threshold, &self.tree, &self.ring_prefix, &cut_of)?;
+                    let cuts: Vec<&[(u32, f32)]> = weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
+                    let w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
+                    let (mut cut, uncovered) = sparse::blend_cuts(&self.tree, &cuts, &w, self.normals[v], &self.ring_prefix);
+                    cut.epsilon_used = epsilon;
+                    (uncovered <= threshold).then_some(cut)
+                })
+                .collect()
+        };
+        let mut traced = Vec::new();
+        let mut interpolated = 0;
+        for (&v, cut) in rest.iter().zip(blended) {
+            match cut {
+                Some(cut) => {
+                    per_vertex[v as usize] = cut;
+                    baked[v as usize] = true;
+                    interpolated += 1;
+                }
+                None => traced.push(v),
+            }
+        }
+        let done = own + interpolated;
+        progress(done);
+        let cuts = self.bake_vertices(&traced, &|k| progress(done + k));
+        store(&traced, cuts, per_vertex, baked);
     }
 
     /// Bakes every vertex of the scene's mesh as it is (no refinement); `order` only changes which
@@ -461,8 +564,11 @@ impl<'a> Baker<'a> {
         self.finish(per_vertex, refinement, decisions, start)
     }
 
-    fn finish(&self, per_vertex: Vec<VertexCut>, refinement: Refinement, decisions: Decisions, start: std::time::Instant) -> Bake {
+    fn finish(&self, per_vertex: Vec<VertexCut>, refinement: Refinement, mut decisions: Decisions, start: std::time::Instant) -> Bake {
         let n = per_vertex.len();
+        let interpolated = per_vertex.iter().filter(|c| c.interpolated).count();
+        decisions.interpolated_vertices = interpolated;
+        decisions.sampling_reason = self.sampling_reason(interpolated);
         let cuts = Cuts::from_vertex_cuts(&per_vertex);
         let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
         let capped_vertices = per_vertex.iter().filter(|c| c.epsilon_used > self.settings.cut.epsilon).count();

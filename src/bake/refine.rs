@@ -32,11 +32,20 @@ pub struct RefineSettings {
     pub threshold: f64,
     /// Never split an edge shorter than this fraction of the bounding-box diagonal.
     pub min_edge: f64,
+    /// Vertex sampling (decision (f), [`super::sparse`]): a vertex whose edges are all shorter than
+    /// `min_edge` and whose traced neighbours agree within `threshold` is interpolated from them instead
+    /// of traced.
+    #[serde(default = "interpolate_default")]
+    pub interpolate: bool,
+}
+
+fn interpolate_default() -> bool {
+    true
 }
 
 impl Default for RefineSettings {
     fn default() -> Self {
-        Self { rounds: 3, threshold: 0.02, min_edge: 1.0 / 128.0 }
+        Self { rounds: 3, threshold: 0.02, min_edge: 1.0 / 128.0, interpolate: true }
     }
 }
 

@@ -1,0 +1,291 @@
+//! Vertex sampling (decision (f)): on a dense mesh, neighbouring vertices see nearly the same sky, so not
+//! every vertex is traced. The dual of the refinement ([`super::refine`], which splits long edges whose
+//! ends' visibility differs): a vertex whose edges are all short and whose traced neighbours agree is
+//! interpolated from them.
+//!
+//! The rule, deterministic and independent of the order vertices are baked in:
+//! 1. *Sampled* vertices, a maximal independent set of the edge graph chosen greedily in vertex order
+//!    ([`sampled_vertices`]), are always traced. Every other vertex has at least one sampled neighbour.
+//! 2. Any other vertex v is *interpolated* when (a) every edge at v is at most `min_edge` × the bounding
+//!    box's diagonal (the scale below which the refinement already deems a mesh dense enough), (b) it
+//!    has at least two sampled neighbours, (c) their normals are within [`MAX_NORMAL_DEG`] of v's,
+//!    (d) every pair of them agrees: D(a, b) ≤ `threshold` ([`super::refine::visibility_difference`],
+//!    the fraction of the rotation-worst irradiance whose visibility differs, with v's normal), and
+//!    (e) the part of v's hemisphere below all their horizons (where they know nothing) carries at most
+//!    `threshold` of that weighted irradiance. Otherwise it is traced.
+//! 3. An interpolated vertex's cut is the common refinement of its sampled neighbours' cuts (cut nodes
+//!    are tree nodes, so at every leaf the deepest of them is a tree node too), with V the
+//!    inverse-distance-weighted mean of theirs (0 where a neighbour's cut has no node: below its
+//!    horizon), less the nodes wholly below v's horizon ([`blend_cuts`]). Across a triangle the renderer
+//!    blends the corners' V with the same kind of weights, so an interpolated vertex stands where a
+//!    coarser mesh's interpolation would: the accuracy model of the refinement, which splits an edge
+//!    only where its ends differ by more than the threshold.
+//!
+//! Inputs: the mesh's triangles and positions, the traced cuts, the light tree, the refinement's
+//! per-leaf weights. Outputs: which vertices are sampled, which are interpolated, and their cuts.
+//! Invariants: no ray tracing; an interpolated cut is a valid cut (disjoint tree nodes in pre-order,
+//! V in [0, 1]); no IO.
+
+use super::refine::visibility_difference;
+use super::VertexCut;
+use crate::sphere::{LightTree, TreeNode};
+use glam::DVec3;
+
+/// Largest angle between an interpolated vertex's normal and each of its sampled neighbours' (degrees):
+/// beyond it the surface bends too much between them for their horizons to stand for its own. (Within
+/// it, a vertex is still traced where the part of its hemisphere below every neighbour's horizon
+/// carries more than the threshold of its weighted irradiance, [`blend_cuts`].)
+pub const MAX_NORMAL_DEG: f64 = 30.0;
+
+/// Neighbours of every vertex through the triangles' edges, sorted, each once.
+pub fn vertex_neighbours(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    let mut out: Vec<Vec<u32>> = vec![Vec::new(); vertex_count];
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if a == b || a >= vertex_count || b >= vertex_count {
+                continue;
+            }
+            out[a].push(b as u32);
+            out[b].push(a as u32);
+        }
+    }
+    for list in &mut out {
+        list.sort_unstable();
+        list.dedup();
+    }
+    out
+}
+
+/// The sampled vertices: a maximal independent set of the edge graph, greedy in vertex order (a vertex is
+/// sampled unless a lower-numbered neighbour is). Isolated vertices are sampled.
+pub fn sampled_vertices(neighbours: &[Vec<u32>]) -> Vec<bool> {
+    let mut sampled = vec![false; neighbours.len()];
+    for v in 0..neighbours.len() {
+        sampled[v] = !neighbours[v].iter().any(|&u| (u as usize) < v && sampled[u as usize]);
+    }
+    sampled
+}
+
+/// Whether vertex `v` may be interpolated (rule 2 of the module docs) and, if so, its sampled neighbours
+/// with their weights (inverse distance, summing to 1). `cut_of(u)` gives sampled vertex u's traced cut.
+#[allow(clippy::too_many_arguments)]
+pub fn interpolation_weights<'c>(
+    v: usize,
+    positions: &[DVec3],
+    normals: &[DVec3],
+    neighbours: &[Vec<u32>],
+    sampled: &[bool],
+    max_edge: f64,
+    threshold: f64,
+    tree: &LightTree,
+    prefix: &[DVec3],
+    cut_of: &dyn Fn(usize) -> &'c [(u32, f32)],
+) -> Option<Vec<(u32, f64)>> {
+    let (p, n) = (*positions.get(v)?, *normals.get(v)?);
+    let around = neighbours.get(v)?;
+    if sampled[v] || around.iter().any(|&u| positions[u as usize].distance(p) > max_edge) {
+        return None;
+    }
+    let cos_max = MAX_NORMAL_DEG.to_radians().cos();
+    let anchors: Vec<u32> = around.iter().copied().filter(|&u| sampled[u as usize]).collect();
+    if anchors.len() < 2 || anchors.iter().any(|&u| normals[u as usize].dot(n) < cos_max) {
+        return None;
+    }
+    for (i, &a) in anchors.iter().enumerate() {
+        for &b in &anchors[i + 1..] {
+            if visibility_difference(tree, prefix, cut_of(a as usize), cut_of(b as usize), n) > threshold {
+                return None;
+            }
+        }
+    }
+    let inverse: Vec<f64> = anchors.iter().map(|&u| 1.0 / positions[u as usize].distance(p).max(1e-30)).collect();
+    let total: f64 = inverse.iter().sum();
+    Some(anchors.into_iter().zip(inverse).map(|(u, w)| (u, w / total)).collect())
+}
+
+/// (whether some direction of the node's cone is above the horizon of `normal`, whether all are).
+fn horizon(node: &TreeNode, normal: DVec3) -> (bool, bool) {
+    let cos_b = node.mean_direction.dot(normal).clamp(-1.0, 1.0);
+    let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
+    // The largest cosine to n inside the cone is cos(β − α) when β ≥ α (else the cone holds n).
+    let max_cos = if cos_b <= node.cone_cos { cos_b * node.cone_cos + sin_b * node.cone_sin } else { 1.0 };
+    let wholly_above = cos_b * node.cone_cos - sin_b * node.cone_sin > 0.0 && sin_b * node.cone_cos + cos_b * node.cone_sin > 0.0;
+    (max_cos > 0.0, wholly_above)
+}
+
+/// Σ max(r Ω d·n, 0) over the leaves of node `k` within [lo, hi) (prefix sums of r Ω d in `prefix`;
+/// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts through.
+fn hemisphere_weight(tree: &LightTree, prefix: &[DVec3], k: u32, lo: u32, hi: u32, normal: DVec3) -> f64 {
+    if prefix.len() <= tree.leaf_count() {
+        return 0.0;
+    }
+    let node = tree.nodes()[k as usize];
+    let (first, end) = (node.first.max(lo), (node.first + node.count).min(hi));
+    if end <= first {
+        return 0.0;
+    }
+    let (above, wholly_above) = horizon(&node, normal);
+    if !above {
+        return 0.0;
+    }
+    if wholly_above || node.is_leaf() {
+        return (prefix[end as usize] - prefix[first as usize]).dot(normal).max(0.0);
+    }
+    hemisphere_weight(tree, prefix, node.left, lo, hi, normal) + hemisphere_weight(tree, prefix, node.right, lo, hi, normal)
+}
+
+/// Pushes the largest tree nodes under `k` that lie within the leaf range [lo, hi), with value `v`, in
+/// leaf order, less those wholly below the horizon of `normal`.
+fn emit_range(tree: &LightTree, k: u32, lo: u32, hi: u32, v: f32, normal: DVec3, out: &mut Vec<(u32, f32)>) {
+    let node = tree.nodes()[k as usize];
+    let (first, end) = (node.first, node.first + node.count);
+    if end <= lo || first >= hi {
+        return;
+    }
+    if !horizon(&node, normal).0 {
+        return;
+    }
+    if (lo <= first && end <= hi) || node.is_leaf() {
+        out.push((k, v));
+        return;
+    }
+    emit_range(tree, node.left, lo, hi, v, normal, out);
+    emit_range(tree, node.right, lo, hi, v, normal, out);
+}
+
+/// The interpolated cut at a vertex with unit `normal` (rule 3 of the module docs): the common
+/// refinement of `cuts` ((node, V) in pre-order) with V = Σ wᵢ Vᵢ, nodes wholly below the horizon
+/// dropped; and the fraction of the vertex's weighted hemisphere (per-leaf weights r Ω d as prefix sums
+/// in `prefix`, [`super::refine::ring_weight_prefix`]; empty: 0) that no cut covers, where the
+/// neighbours' horizons hide what the vertex sees.
+pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], normal: DVec3, prefix: &[DVec3]) -> (VertexCut, f64) {
+    let (mut covered, mut uncovered) = (0.0f64, 0.0f64);
+    let nodes = tree.nodes();
+    let mut idx = vec![0usize; cuts.len()];
+    let mut entries = Vec::new();
+    let mut pos = 0u32;
+    let leaves = tree.leaf_count() as u32;
+    while pos < leaves {
+        // The deepest node among the cuts' nodes holding `pos`, and the next start if none holds it.
+        let mut best: Option<(u32, u32)> = None;
+        let mut next_start = leaves;
+        for (c, cut) in cuts.iter().enumerate() {
+            while idx[c] < cut.len() && nodes[cut[idx[c]].0 as usize].first + nodes[cut[idx[c]].0 as usize].count <= pos {
+                idx[c] += 1;
+            }
+            if let Some(&(k, _)) = cut.get(idx[c]) {
+                let node = nodes[k as usize];
+                if node.first <= pos {
+                    if best.is_none_or(|(_, count)| node.count < count) {
+                        best = Some((k, node.count));
+                    }
+                } else {
+                    next_start = next_start.min(node.first);
+                }
+            }
+        }
+        let Some((k, _)) = best else {
+            uncovered += hemisphere_weight(tree, prefix, 0, pos, next_start, normal);
+            pos = next_start;
+            continue;
+        };
+        let mut v = 0.0f64;
+        for (c, cut) in cuts.iter().enumerate() {
+            if let Some(&(m, vm)) = cut.get(idx[c])
+                && nodes[m as usize].first <= pos
+            {
+                v += weights[c] * vm as f64;
+            }
+        }
+        // V is constant up to the deepest node's end or the next node another cut starts (within a
+        // gap of that cut, e.g. below its horizon): the tree nodes under k covering [pos, end).
+        let end = (nodes[k as usize].first + nodes[k as usize].count).min(next_start);
+        let v = v.clamp(0.0, 1.0) as f32;
+        let from = entries.len();
+        emit_range(tree, k, pos, end, v, normal, &mut entries);
+        // (Straddling nodes count with their clamped net weight: covered is underestimated, which only
+        // makes the uncovered fraction conservative.)
+        if prefix.len() > tree.leaf_count() {
+            covered += entries[from..].iter().map(|&(m, _)| {
+                let node = nodes[m as usize];
+                (prefix[(node.first + node.count) as usize] - prefix[node.first as usize]).dot(normal).max(0.0)
+            }).sum::<f64>();
+        }
+        pos = end;
+    }
+    let total = covered + uncovered;
+    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true }, if total > 0.0 { uncovered / total } else { 0.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::DirectionSet;
+
+    /// The greedy set is independent (no two sampled vertices share an edge) and maximal (every other
+    /// vertex has a sampled neighbour), on a grid of triangles.
+    #[test]
+    fn sampled_vertices_are_a_maximal_independent_set() {
+        let n = 9usize;
+        let mut triangles = Vec::new();
+        for y in 0..n - 1 {
+            for x in 0..n - 1 {
+                let v = (y * n + x) as u32;
+                triangles.push([v, v + 1, v + n as u32]);
+                triangles.push([v + 1, v + 1 + n as u32, v + n as u32]);
+            }
+        }
+        let neighbours = vertex_neighbours(n * n, &triangles);
+        let sampled = sampled_vertices(&neighbours);
+        for v in 0..n * n {
+            let any = neighbours[v].iter().any(|&u| sampled[u as usize]);
+            if sampled[v] {
+                assert!(!any, "sampled vertex {v} has a sampled neighbour");
+            } else {
+                assert!(any, "vertex {v} has no sampled neighbour");
+            }
+        }
+        let count = sampled.iter().filter(|&&s| s).count();
+        assert!(count < n * n / 2, "{count} of {} sampled", n * n);
+    }
+
+    /// The blend against a per-leaf reference: at every leaf above the horizon, the blended cut's V is
+    /// Σ wᵢ Vᵢ(leaf) of the inputs (0 where an input has no node), nodes are disjoint and in leaf order.
+    #[test]
+    fn blended_cut_is_the_weighted_mean_at_every_leaf() {
+        let set = DirectionSet::cube(8).unwrap();
+        let tree = LightTree::build(&set);
+        let nodes = tree.nodes();
+        // Two cuts of different depths: a = the root's first half (the second missing), b = nodes of at
+        // most 16 leaves with varying V
+        let a: Vec<(u32, f32)> = vec![(nodes[0].left, 0.8)];
+        // (with gaps, as below a horizon: a coarse node of `a` holds finer nodes of `b` after a gap).
+        let b: Vec<(u32, f32)> = crate::bake::decisions::nodes_of_at_most(&tree, 16, 0)
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i % 5 != 2)
+            .map(|(i, &k)| (k as u32, (i % 3) as f32 * 0.5))
+            .collect();
+        let weights = [0.25, 0.75];
+        let normal = DVec3::new(0.3, 0.8, 0.2).normalize();
+        let (cut, _) = blend_cuts(&tree, &[&a, &b], &weights, normal, &[]);
+        let leaf_v = |c: &[(u32, f32)], l: u32| c.iter().find(|&&(k, _)| nodes[k as usize].first <= l && l < nodes[k as usize].first + nodes[k as usize].count).map_or(0.0, |e| e.1 as f64);
+        let mut last_end = 0;
+        for &(k, _) in &cut.entries {
+            assert!(nodes[k as usize].first >= last_end, "nodes overlap or are out of order");
+            last_end = nodes[k as usize].first + nodes[k as usize].count;
+        }
+        for l in 0..tree.leaf_count() as u32 {
+            let above = tree.leaf_directions()[l as usize].dot(normal) > 0.0;
+            let expected = 0.25 * leaf_v(&a, l) + 0.75 * leaf_v(&b, l);
+            let got = leaf_v(&cut.entries, l);
+            if above {
+                assert!((got - expected).abs() < 1e-6, "leaf {l}: {got} against {expected}");
+            } else {
+                // Below the horizon a leaf keeps its node's value or is dropped with it.
+                assert!(got == 0.0 || (got - expected).abs() < 1e-6, "leaf {l} below the horizon: {got}");
+            }
+        }
+    }
+}
