@@ -21,8 +21,7 @@
 //! reasons (serialisable, stored in the bake). No IO.
 
 use super::tracer::Tracer;
-use crate::env::EnvMap;
-use crate::light::texel_radiance;
+use crate::light::{LightSource, texel_radiance_from};
 use crate::scene::Mesh;
 use crate::sphere::lobes::fibonacci_hemisphere;
 use crate::sphere::{DirectionSet, LightTree, srbf};
@@ -182,7 +181,7 @@ pub fn brdf_resolution(lambda: f64) -> usize {
 /// (c): (resolution, reason, probe errors). `lambda` is the half-vector lobe sharpness the BRDF will use.
 /// The result is the finer of what the environment needs (probe lobes) and what the BRDF needs
 /// ([`brdf_resolution`]).
-pub fn decide_resolution(env: &EnvMap, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
+pub fn decide_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
     let (n_light, light_reason, errors) = light_resolution(env, lambda);
     let n_brdf = brdf_resolution(lambda);
     if n_brdf > n_light {
@@ -197,14 +196,14 @@ pub fn decide_resolution(env: &EnvMap, lambda: f64) -> (usize, String, Vec<(usiz
 }
 
 /// The environment's part of (c).
-fn light_resolution(env: &EnvMap, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
+fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
     let lambda_wi = lambda / 4.0;
     // Probe axes over the whole sphere (two Fibonacci hemispheres).
     let mut probes = fibonacci_hemisphere(64);
     probes.extend(fibonacci_hemisphere(64).into_iter().map(|d| DVec3::new(d.x, d.y, -d.z)));
     let integrate = |n: usize| -> Vec<f64> {
         let Ok(set) = DirectionSet::cube(n) else { return vec![0.0; probes.len()] };
-        let radiance = texel_radiance(env, &set, 0.0);
+        let radiance = texel_radiance_from(env, &set, 0.0);
         let cut = srbf::support_cosine(lambda_wi, 30.0);
         probes
             .par_iter()
@@ -269,8 +268,8 @@ pub fn cell_leaves(resolution: usize, deg: f64) -> usize {
 /// geometry ([`Tracer::cone_free`], exact) are visible for every size and cost no ray. The coarsest
 /// candidate whose relative RMS error over the probes is within [`CELL_TOLERANCE`] is chosen; if none is,
 /// the one measured closest, and the reason says how far off it stays.
-pub fn decide_cell(env: &EnvMap, set: &DirectionSet, tree: &LightTree, origins: &[(DVec3, DVec3)], tracer: &Tracer) -> (f64, String, Vec<(f64, f64)>) {
-    let radiance = texel_radiance(env, set, 0.0);
+pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, origins: &[(DVec3, DVec3)], tracer: &Tracer) -> (f64, String, Vec<(f64, f64)>) {
+    let radiance = texel_radiance_from(env, set, 0.0);
     let luminance: Vec<f64> = tree.leaf_texels().iter().map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0).collect();
     let resolution = set.resolution();
     let cells: Vec<Vec<usize>> = CELL_CANDIDATES_DEG.iter().map(|&deg| nodes_of_at_most(tree, cell_leaves(resolution, deg) as u32, 0)).collect();

@@ -216,45 +216,74 @@ impl<'a> Baker<'a> {
             return Err(BakeError::Settings(format!("the visibility cell size must be finite and >= 0 degrees, not {deg}")));
         }
         let lambda = srbf::lambda_from_sigma(settings.sigma)?;
-        let (resolution, resolution_reason, probe_errors) = match settings.resolution {
-            Some(n) => (n, format!("set explicitly to {n} per side ({} directions)", 6 * n * n), Vec::new()),
-            None => decisions::decide_resolution(env, lambda),
-        };
-        let set = DirectionSet::cube(resolution)?;
-        let mut settings = settings;
-        let tree = LightTree::build(&set);
-        let tracer = Tracer::new(mesh);
+        // The environment split once (clamped base and excess samples) for every decision below.
+        let source = crate::light::LightSource::new(env);
         let positions: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
         let normals: Vec<DVec3> = mesh.normals.iter().map(|n| n.as_dvec3().try_normalize().unwrap_or(DVec3::Y)).collect();
         let offset = settings.cut.ray_offset * scene.bounds.diagonal().max(1e-12) as f64;
-        let (needs_trace, mut trace_reason) = decisions::decide_occlusion(&positions, &normals, offset, &tracer);
+        // The light's decision (c) and the geometry's (BVH, decision (a)) need nothing of each other:
+        // run side by side, so that the serial parts of each overlap.
+        let (light, geometry) = rayon::join(
+            || -> Result<_, BakeError> {
+                let (resolution, resolution_reason, probe_errors) = match settings.resolution {
+                    Some(n) => (n, format!("set explicitly to {n} per side ({} directions)", 6 * n * n), Vec::new()),
+                    None => decisions::decide_resolution(&source, lambda),
+                };
+                let set = DirectionSet::cube(resolution)?;
+                let tree = LightTree::build(&set);
+                Ok((resolution, resolution_reason, probe_errors, set, tree))
+            },
+            || {
+                let tracer = Tracer::new(mesh);
+                let occlusion = decisions::decide_occlusion(&positions, &normals, offset, &tracer);
+                (tracer, occlusion)
+            },
+        );
+        let (resolution, resolution_reason, probe_errors, set, tree) = light?;
+        let (tracer, (needs_trace, mut trace_reason)) = geometry;
+        let mut settings = settings;
         let trace_visibility = needs_trace || settings.force_trace;
         if settings.force_trace && !needs_trace {
             trace_reason.push_str(" (traced anyway: force_trace)");
         }
-        let (cell_deg, cell_reason, cell_probe_errors) = match settings.cell_deg {
-            Some(deg) => (deg, format!("set explicitly to {deg}° ({} directions per cell)", decisions::cell_leaves(resolution, deg)), Vec::new()),
-            None if !trace_visibility => {
-                let deg = decisions::CELL_CANDIDATES_DEG[0];
-                (deg, format!("{deg}°: no visibility is traced, so the cell size does not matter"), Vec::new())
-            }
-            None => {
-                let origins: Vec<(DVec3, DVec3)> = positions.iter().zip(&normals).map(|(p, n)| (*p + *n * offset, *n)).collect();
-                decisions::decide_cell(env, &set, &tree, &origins, &tracer)
-            }
-        };
+        // Decision (d) traces probes; the tangents (b), the refinement's weights and the vertex sampling
+        // set (f) need nothing of it: side by side.
+        let interpolate = trace_visibility && settings.refine.interpolate;
+        let ((cell_deg, cell_reason, cell_probe_errors), ((frame_source, tangents, frame_reason), ring_prefix, (vertex_neighbours, sampled))) = rayon::join(
+            || match settings.cell_deg {
+                Some(deg) => (deg, format!("set explicitly to {deg}° ({} directions per cell)", decisions::cell_leaves(resolution, deg)), Vec::new()),
+                None if !trace_visibility => {
+                    let deg = decisions::CELL_CANDIDATES_DEG[0];
+                    (deg, format!("{deg}°: no visibility is traced, so the cell size does not matter"), Vec::new())
+                }
+                None => {
+                    let origins: Vec<(DVec3, DVec3)> = positions.iter().zip(&normals).map(|(p, n)| (*p + *n * offset, *n)).collect();
+                    decisions::decide_cell(&source, &set, &tree, &origins, &tracer)
+                }
+            },
+            || {
+                let frames = decisions::decide_frames(mesh);
+                let ring_prefix = if trace_visibility && (settings.refine.rounds > 0 || settings.refine.interpolate) {
+                    refine::ring_weight_prefix(&tree, crate::light::LightSums::from_source(&source, &set, &tree, 0.0).leaf_radiance())
+                } else {
+                    Vec::new()
+                };
+                let sampling = if interpolate {
+                    let neighbours = sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
+                    let sampled = sparse::sampled_vertices(&neighbours);
+                    (neighbours, sampled)
+                } else {
+                    (Vec::new(), Vec::new())
+                };
+                (frames, ring_prefix, sampling)
+            },
+        );
         settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
         let (boundary_levels, boundary_reason) = decisions::decide_boundary(settings.boundary_levels, settings.cell_deg.is_some(), trace_visibility, cell_deg, &cell_probe_errors);
         settings.cut.boundary_levels = boundary_levels;
         settings.boundary_levels = Some(boundary_levels);
         settings.cell_deg = Some(cell_deg);
         let cell_neighbours = if trace_visibility { cuts::CellNeighbours::new(&set, &tree, settings.cut.cell_leaves, settings.cut.boundary_levels) } else { cuts::CellNeighbours::default() };
-        let (frame_source, tangents, frame_reason) = decisions::decide_frames(mesh);
-        let ring_prefix = if trace_visibility && (settings.refine.rounds > 0 || settings.refine.interpolate) {
-            refine::ring_weight_prefix(&tree, crate::light::LightSums::new(env, &set, &tree, 0.0).leaf_radiance())
-        } else {
-            Vec::new()
-        };
         let decisions = Decisions {
             trace_visibility,
             trace_reason,
@@ -273,13 +302,6 @@ impl<'a> Baker<'a> {
             refined_vertices: 0,
             sampling_reason: String::new(),
             interpolated_vertices: 0,
-        };
-        let (vertex_neighbours, sampled) = if trace_visibility && settings.refine.interpolate {
-            let neighbours = sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
-            let sampled = sparse::sampled_vertices(&neighbours);
-            (neighbours, sampled)
-        } else {
-            (Vec::new(), Vec::new())
         };
         Ok(Self {
             scene,
