@@ -16,6 +16,8 @@
 //!   candidate size against the irradiance with a ray per direction; the coarsest within 2 % wins (else
 //!   the closer). Small bright lights (a studio's softboxes, a window) whose visibility a coarse cell
 //!   gets wrong push it finer; a broad sky does not.
+//! - (e) and (f) are made while baking, from the traced cuts: the mesh refinement
+//!   ([`super::refine`]) and the vertex sampling ([`super::sparse`]); their reasons are stored here too.
 //!
 //! Inputs: the mesh, the tracer, the environment, the direction set's tree. Outputs: decisions with
 //! reasons (serialisable, stored in the bake). No IO.
@@ -259,6 +261,14 @@ pub fn cell_leaves(resolution: usize, deg: f64) -> usize {
     (per_side * per_side).round().max(1.0) as usize
 }
 
+/// The cells of at most `max_leaves` leaves in words: the tree's largest nodes that small, e.g. "48
+/// directions each" for at most 64 on a 6×64² set, whose node sizes are 3·2^k.
+pub fn cell_size_words(tree: &LightTree, max_leaves: usize) -> String {
+    let sizes: Vec<u32> = nodes_of_at_most(tree, max_leaves as u32, 0).iter().map(|&k| tree.nodes()[k].count).collect();
+    let (lo, hi) = (sizes.iter().copied().min().unwrap_or(0), sizes.iter().copied().max().unwrap_or(0));
+    if lo == hi { format!("{hi} directions each") } else { format!("{lo}–{hi} directions each") }
+}
+
 /// (d): (cell size in degrees, reason, probe errors).
 ///
 /// At [`CELL_PROBES`] vertices (ray origins and normals in `origins`) the irradiance of the
@@ -328,8 +338,8 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
     let listed = errors.iter().map(|(d, e)| format!("{d}° {:.2} %", e * 100.0)).collect::<Vec<_>>().join(", ");
     if let Some(&(deg, _)) = errors.iter().find(|(_, e)| *e <= CELL_TOLERANCE) {
         let reason = format!(
-            "{deg}° cells ({} directions each): at {count} probe vertices the irradiance with one ray per cell is within {:.0} % (RMS) of a ray per direction ({listed})",
-            cell_leaves(resolution, deg),
+            "{deg}° cells ({}): at {count} probe vertices the irradiance with one ray per cell is within {:.0} % (RMS) of a ray per direction ({listed})",
+            cell_size_words(tree, cell_leaves(resolution, deg)),
             CELL_TOLERANCE * 100.0
         );
         return (deg, reason, errors);
@@ -339,8 +349,8 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
     // 3.5 %), and then the extra rays buy nothing.
     let (deg, _) = errors.iter().copied().fold((CELL_CANDIDATES_DEG[0], f64::INFINITY), |best, e| if e.1 < best.1 { e } else { best });
     let reason = format!(
-        "{deg}° cells ({} directions each), the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
-        cell_leaves(resolution, deg),
+        "{deg}° cells ({}), the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
+        cell_size_words(tree, cell_leaves(resolution, deg)),
         CELL_TOLERANCE * 100.0
     );
     (deg, reason, errors)
