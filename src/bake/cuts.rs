@@ -28,7 +28,8 @@
 //!    and solid occluders at the coarse size (teapot under a uniform sky, 5.625° cells: the error
 //!    against a ray per direction 0.0229 → 0.0002 sr with two levels, at 19 % of that bake's rays).
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
-//!    cached, so no ray is cast twice) until it fits; such vertices are counted.
+//!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
+//!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
 //!
 //! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon leaf
 //! lies in exactly one; values are in [0, 1]; the result does not depend on the thread that made it.
@@ -126,6 +127,8 @@ struct Ctx<'a> {
     cell_leaves: usize,
     boundary_levels: u32,
     epsilon: f64,
+    /// ε of the settings, kept when the cap relaxes `epsilon`: the blind guess of rule 3 uses it.
+    guess_epsilon: f64,
     scratch: &'a mut CutScratch,
     rays: u64,
     /// Whether cone tests may be used (false on redo passes: their answers are cached in `free`).
@@ -261,6 +264,7 @@ pub fn vertex_cut(
         cell_leaves: settings.cell_leaves.max(1),
         boundary_levels: settings.boundary_levels,
         epsilon: settings.epsilon.max(0.0),
+        guess_epsilon: settings.epsilon.max(0.0),
         scratch,
         rays: 0,
         free: Vec::new(),
@@ -360,14 +364,17 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             return (w, w, 0.0);
         }
     }
-    if !known && 0.5 * max_cos <= 4.0 * ctx.epsilon {
+    // (With the settings' ε, not the one the cap relaxed: a relaxed ε of 0.13 would accept the whole
+    // sphere with V = ½, its error bound diluted by the half below the horizon. The cap coarsens by
+    // merging, which keeps each node's cosine-weighted mean.)
+    if !known && 0.5 * max_cos <= 4.0 * ctx.guess_epsilon {
         // A node so close to the horizon that even a blind guess V = ½ keeps its mean |Ṽ| error within
         // ε (½ Σ Ω c ≤ ε Ω) needs no rays. The O(1) bound Σ Ω c ≤ max cos · Ω screens candidates.
         let w = if wholly_above { node.moment.dot(ctx.n) } else { cosine_mass(ctx.tree, k, ctx.n) };
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
-        if 0.5 * w <= ctx.epsilon * node.solid_angle {
+        if 0.5 * w <= ctx.guess_epsilon * node.solid_angle {
             out.push((k as u32, 0.5));
             return (w, 0.5 * w, 0.5 * w);
         }
