@@ -341,20 +341,7 @@ fn a_capped_cut_keeps_the_irradiance_of_the_uncapped_one() {
         s.refine.interpolate = false;
         let baker = Baker::new(&scene, &env, s).unwrap();
         let bake = baker.bake_all(None, &|_| {});
-        let tree = &baker.tree;
-        let e = (0..bake.cuts.vertex_count())
-            .map(|v| {
-                let (_, n) = baker.ray_origin(v).unwrap();
-                bake.cuts
-                    .cut(v)
-                    .map(|(k, vis)| {
-                        let node = tree.nodes()[k as usize];
-                        let w: f64 = (node.first..node.first + node.count).map(|i| tree.leaf_moments()[i as usize].dot(n).max(0.0)).sum();
-                        vis as f64 * w
-                    })
-                    .sum::<f64>()
-            })
-            .collect();
+        let e = cut_irradiance(&baker, &bake, &vec![1.0; baker.tree.leaf_count()]);
         (e, bake.stats.capped_vertices, bake.stats.max_cut_size)
     };
     let (free, capped_none, largest) = irradiance(100_000);
