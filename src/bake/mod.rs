@@ -201,6 +201,7 @@ pub struct Baker<'a> {
     /// when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
     sampled: Vec<bool>,
+    hemisphere_totals: sparse::HemisphereTotals,
 }
 
 impl<'a> Baker<'a> {
@@ -305,6 +306,7 @@ impl<'a> Baker<'a> {
             sampling_reason: String::new(),
             interpolated_vertices: 0,
         };
+        let hemisphere_totals = if sampled.is_empty() { sparse::HemisphereTotals::default() } else { sparse::HemisphereTotals::new(&tree, &ring_prefix) };
         Ok(Self {
             scene,
             settings,
@@ -319,6 +321,7 @@ impl<'a> Baker<'a> {
             decision_seconds: start.elapsed().as_secs_f64(),
             ring_prefix,
             cell_neighbours,
+            hemisphere_totals,
             vertex_neighbours,
             sampled,
         })
@@ -454,7 +457,7 @@ impl<'a> Baker<'a> {
                     let weights = sparse::interpolation_weights(v, &self.positions, &self.normals, &self.vertex_neighbours, &self.sampled, max_edge, threshold, &self.tree, &self.ring_prefix, &cut_of)?;
                     let cuts: Vec<&[(u32, f32)]> = weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
                     let w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
-                    let (mut cut, uncovered) = sparse::blend_cuts(&self.tree, &cuts, &w, self.normals[v], &self.ring_prefix);
+                    let (mut cut, uncovered) = sparse::blend_cuts(&self.tree, &cuts, &w, self.normals[v], &self.ring_prefix, self.hemisphere_totals.at(self.normals[v]));
                     cut.epsilon_used = epsilon;
                     (uncovered <= threshold).then_some(cut)
                 })

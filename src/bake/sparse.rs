@@ -104,6 +104,41 @@ pub fn interpolation_weights<'c>(
     Some(anchors.into_iter().zip(inverse).map(|(u, w)| (u, w / total)).collect())
 }
 
+/// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r depend on
+/// the elevation only (the rotation-worst light, [`super::refine::ring_weight_prefix`]), so the total
+/// depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values, interpolated linearly.
+#[derive(Debug, Clone, Default)]
+pub struct HemisphereTotals {
+    table: Vec<f64>,
+}
+
+impl HemisphereTotals {
+    /// Table points over n·Y ∈ [−1, 1].
+    pub const SAMPLES: usize = 129;
+
+    pub fn new(tree: &LightTree, prefix: &[DVec3]) -> Self {
+        let table = (0..Self::SAMPLES)
+            .map(|i| {
+                let y = -1.0 + 2.0 * i as f64 / (Self::SAMPLES - 1) as f64;
+                let n = DVec3::new((1.0 - y * y).max(0.0).sqrt(), y, 0.0);
+                hemisphere_weight(tree, prefix, 0, 0, tree.leaf_count() as u32, n)
+            })
+            .collect();
+        Self { table }
+    }
+
+    /// The total for unit normal `n` (0 for an empty table).
+    pub fn at(&self, n: DVec3) -> f64 {
+        if self.table.len() < 2 {
+            return 0.0;
+        }
+        let x = (n.y.clamp(-1.0, 1.0) + 1.0) * 0.5 * (self.table.len() - 1) as f64;
+        let i = (x as usize).min(self.table.len() - 2);
+        let f = x - i as f64;
+        self.table[i] * (1.0 - f) + self.table[i + 1] * f
+    }
+}
+
 /// (whether some direction of the node's cone is above the horizon of `normal`, whether all are).
 fn horizon(node: &TreeNode, normal: DVec3) -> (bool, bool) {
     let cos_b = node.mean_direction.dot(normal).clamp(-1.0, 1.0);
@@ -158,9 +193,10 @@ fn emit_range(tree: &LightTree, k: u32, lo: u32, hi: u32, v: f32, normal: DVec3,
 /// refinement of `cuts` ((node, V) in pre-order) with V = Σ wᵢ Vᵢ, nodes wholly below the horizon
 /// dropped; and the fraction of the vertex's weighted hemisphere (per-leaf weights r Ω d as prefix sums
 /// in `prefix`, [`super::refine::ring_weight_prefix`]; empty: 0) that no cut covers, where the
-/// neighbours' horizons hide what the vertex sees.
-pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], normal: DVec3, prefix: &[DVec3]) -> (VertexCut, f64) {
-    let (mut covered, mut uncovered) = (0.0f64, 0.0f64);
+/// neighbours' horizons hide what the vertex sees: the uncovered weight over `total`, the whole
+/// hemisphere's ([`HemisphereTotals`]).
+pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], normal: DVec3, prefix: &[DVec3], total: f64) -> (VertexCut, f64) {
+    let mut uncovered = 0.0f64;
     let nodes = tree.nodes();
     let mut idx = vec![0usize; cuts.len()];
     let mut entries = Vec::new();
@@ -202,26 +238,72 @@ pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], nor
         // gap of that cut, e.g. below its horizon): the tree nodes under k covering [pos, end).
         let end = (nodes[k as usize].first + nodes[k as usize].count).min(next_start);
         let v = v.clamp(0.0, 1.0) as f32;
-        let from = entries.len();
         emit_range(tree, k, pos, end, v, normal, &mut entries);
-        // (Straddling nodes count with their clamped net weight: covered is underestimated, which only
-        // makes the uncovered fraction conservative.)
-        if prefix.len() > tree.leaf_count() {
-            covered += entries[from..].iter().map(|&(m, _)| {
-                let node = nodes[m as usize];
-                (prefix[(node.first + node.count) as usize] - prefix[node.first as usize]).dot(normal).max(0.0)
-            }).sum::<f64>();
-        }
         pos = end;
     }
-    let total = covered + uncovered;
-    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true }, if total > 0.0 { uncovered / total } else { 0.0 })
+    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true }, if total > 0.0 { (uncovered / total).min(1.0) } else { 0.0 })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sphere::DirectionSet;
+
+    /// Rule 2 condition by condition, on a star: vertex 0 at the origin, vertices 1–4 around it at
+    /// distances 1, 1, 1 and 2, the sampled ones 1 and 2 (3 and 4 not).
+    #[test]
+    fn interpolation_follows_each_condition_of_the_rule() {
+        let set = DirectionSet::cube(8).unwrap();
+        let tree = LightTree::build(&set);
+        let prefix = super::super::refine::ring_weight_prefix(&tree, &vec![[1.0; 3]; tree.leaf_count()]);
+        let positions = vec![DVec3::ZERO, DVec3::X, DVec3::Z, -DVec3::X, -2.0 * DVec3::Z];
+        let up = vec![DVec3::Y; 5];
+        let triangles = [[0u32, 1, 2], [0, 2, 3], [0, 3, 4]];
+        let neighbours = vertex_neighbours(5, &triangles);
+        let sampled = vec![false, true, true, false, false];
+        let open: Vec<(u32, f32)> = vec![(0, 1.0)];
+        let half: Vec<(u32, f32)> = vec![(0, 0.5)];
+        let run = |max_edge: f64, normals: &[DVec3], cut_2: &[(u32, f32)]| {
+            let cuts = [open.clone(), open.clone(), cut_2.to_vec(), open.clone(), open.clone()];
+            let cut_of = |u: usize| cuts[u].as_slice();
+            interpolation_weights(0, &positions, normals, &neighbours, &sampled, max_edge, 0.02, &tree, &prefix, &cut_of)
+        };
+        // Every condition holds: the two sampled neighbours, weighted by inverse distance (equal here).
+        let w = run(2.5, &up, &open).expect("interpolated");
+        assert_eq!(w.iter().map(|e| e.0).collect::<Vec<_>>(), vec![1, 2]);
+        assert!(w.iter().all(|e| (e.1 - 0.5).abs() < 1e-12));
+        // (a) an edge longer than the limit (vertex 4 at distance 2).
+        assert!(run(1.5, &up, &open).is_none());
+        // (c) a sampled neighbour's normal 45° off.
+        let mut tilted = up.clone();
+        tilted[2] = DVec3::new(1.0, 1.0, 0.0).normalize();
+        assert!(run(2.5, &tilted, &open).is_none());
+        // ... but 20° off is within the 30° allowed.
+        tilted[2] = DVec3::new(20f64.to_radians().sin(), 20f64.to_radians().cos(), 0.0);
+        assert!(run(2.5, &tilted, &open).is_some());
+        // (d) the sampled neighbours disagree: D = 0.5 of the irradiance.
+        assert!(run(2.5, &up, &half).is_none());
+        // (b) a sampled vertex is never interpolated, and one sampled neighbour is not enough.
+        let cut_of = |_: usize| open.as_slice();
+        assert!(interpolation_weights(1, &positions, &up, &neighbours, &sampled, 2.5, 0.02, &tree, &prefix, &cut_of).is_none());
+        let lone = vec![false, true, false, false, false];
+        assert!(interpolation_weights(0, &positions, &up, &neighbours, &lone, 2.5, 0.02, &tree, &prefix, &cut_of).is_none());
+        // (e) what no neighbour's cut covers: nothing for whole-sphere cuts; for cuts of half the sphere
+        // (the root's first child), the share of the hemisphere's weight outside it.
+        let totals = HemisphereTotals::new(&tree, &prefix);
+        let n = DVec3::new(0.3, 0.9, 0.1).normalize();
+        let leaf_weight = |l: usize| (prefix[l + 1] - prefix[l]).dot(n).max(0.0);
+        let all: f64 = (0..tree.leaf_count()).map(leaf_weight).sum();
+        // The table against a sum over every leaf.
+        assert!((totals.at(n) - all).abs() < 2e-3 * all, "table {} against {all}", totals.at(n));
+        let (_, none) = blend_cuts(&tree, &[&open, &open], &[0.5, 0.5], n, &prefix, totals.at(n));
+        assert_eq!(none, 0.0);
+        let first_half: Vec<(u32, f32)> = vec![(tree.nodes()[0].left, 1.0)];
+        let (_, some) = blend_cuts(&tree, &[&first_half, &first_half], &[0.5, 0.5], n, &prefix, totals.at(n));
+        let half = tree.nodes()[tree.nodes()[0].left as usize].count as usize;
+        let expected = (half..tree.leaf_count()).map(leaf_weight).sum::<f64>() / all;
+        assert!(expected > 0.1 && (some - expected).abs() < 0.01, "uncovered {some} against {expected}");
+    }
 
     /// The greedy set is independent (no two sampled vertices share an edge) and maximal (every other
     /// vertex has a sampled neighbour), on a grid of triangles.
@@ -269,7 +351,7 @@ mod tests {
             .collect();
         let weights = [0.25, 0.75];
         let normal = DVec3::new(0.3, 0.8, 0.2).normalize();
-        let (cut, _) = blend_cuts(&tree, &[&a, &b], &weights, normal, &[]);
+        let (cut, _) = blend_cuts(&tree, &[&a, &b], &weights, normal, &[], 0.0);
         let leaf_v = |c: &[(u32, f32)], l: u32| c.iter().find(|&&(k, _)| nodes[k as usize].first <= l && l < nodes[k as usize].first + nodes[k as usize].count).map_or(0.0, |e| e.1 as f64);
         let mut last_end = 0;
         for &(k, _) in &cut.entries {
