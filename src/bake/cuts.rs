@@ -320,17 +320,10 @@ fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
 /// boundary refinement.
 fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, f32)>) -> Sums {
     let node = ctx.tree.nodes()[k];
-    // β = angle(mean direction, n), α = the cone's half-angle; all in cosines and sines (no acos).
-    let cos_b = node.mean_direction.dot(ctx.n).clamp(-1.0, 1.0);
-    let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
-    let (cos_a, sin_a) = (node.cone_cos.clamp(-1.0, 1.0), node.cone_sin);
-    // cos(β − α) is the largest cosine to n inside the cone when β ≥ α (else the cone holds n).
-    let max_cos = if cos_b <= cos_a { cos_b * cos_a + sin_b * sin_a } else { 1.0 };
+    let (max_cos, wholly_above) = node.horizon(ctx.n);
     if max_cos <= 0.0 {
         return (0.0, 0.0, 0.0);
     }
-    // β + α < π/2: every direction of the node is above the horizon.
-    let wholly_above = cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
     // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a quarter
     // of its leaves instead.
     let refined = ctx.boundary_levels > 0 && known && node.count as usize <= cell && !node.is_leaf() && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;

@@ -28,7 +28,7 @@
 
 use super::refine::visibility_difference;
 use super::VertexCut;
-use crate::sphere::{LightTree, TreeNode};
+use crate::sphere::LightTree;
 use glam::DVec3;
 
 /// Largest angle between an interpolated vertex's normal and each of its sampled neighbours' (degrees):
@@ -139,16 +139,6 @@ impl HemisphereTotals {
     }
 }
 
-/// (whether some direction of the node's cone is above the horizon of `normal`, whether all are).
-fn horizon(node: &TreeNode, normal: DVec3) -> (bool, bool) {
-    let cos_b = node.mean_direction.dot(normal).clamp(-1.0, 1.0);
-    let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
-    // The largest cosine to n inside the cone is cos(β − α) when β ≥ α (else the cone holds n).
-    let max_cos = if cos_b <= node.cone_cos { cos_b * node.cone_cos + sin_b * node.cone_sin } else { 1.0 };
-    let wholly_above = cos_b * node.cone_cos - sin_b * node.cone_sin > 0.0 && sin_b * node.cone_cos + cos_b * node.cone_sin > 0.0;
-    (max_cos > 0.0, wholly_above)
-}
-
 /// Σ max(r Ω d·n, 0) over the leaves of node `k` within [lo, hi) (prefix sums of r Ω d in `prefix`;
 /// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts through.
 fn hemisphere_weight(tree: &LightTree, prefix: &[DVec3], k: u32, lo: u32, hi: u32, normal: DVec3) -> f64 {
@@ -160,8 +150,8 @@ fn hemisphere_weight(tree: &LightTree, prefix: &[DVec3], k: u32, lo: u32, hi: u3
     if end <= first {
         return 0.0;
     }
-    let (above, wholly_above) = horizon(&node, normal);
-    if !above {
+    let (max_cos, wholly_above) = node.horizon(normal);
+    if max_cos <= 0.0 {
         return 0.0;
     }
     if wholly_above || node.is_leaf() {
@@ -178,7 +168,7 @@ fn emit_range(tree: &LightTree, k: u32, lo: u32, hi: u32, v: f32, normal: DVec3,
     if end <= lo || first >= hi {
         return;
     }
-    if !horizon(&node, normal).0 {
+    if node.horizon(normal).0 <= 0.0 {
         return;
     }
     if (lo <= first && end <= hi) || node.is_leaf() {

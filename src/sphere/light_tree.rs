@@ -45,6 +45,20 @@ impl TreeNode {
     pub fn is_leaf(&self) -> bool {
         self.left == NO_CHILD
     }
+
+    /// The node's bounding cone against the horizon of unit `n`: (the largest cosine to n inside the
+    /// cone, whether every direction of the cone is above the horizon). β = angle(mean direction, n),
+    /// α = the cone's half-angle, all in cosines and sines (no acos): the largest cosine is cos(β − α)
+    /// when β ≥ α (else the cone holds n), and the cone is wholly above when β + α < π/2.
+    #[inline]
+    pub fn horizon(&self, n: DVec3) -> (f64, bool) {
+        let cos_b = self.mean_direction.dot(n).clamp(-1.0, 1.0);
+        let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
+        let (cos_a, sin_a) = (self.cone_cos.clamp(-1.0, 1.0), self.cone_sin);
+        let max_cos = if cos_b <= cos_a { cos_b * cos_a + sin_b * sin_a } else { 1.0 };
+        let wholly_above = cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
+        (max_cos, wholly_above)
+    }
 }
 
 /// Binary tree over a direction set.
