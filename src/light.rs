@@ -207,6 +207,44 @@ impl LightSums {
         [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]]
     }
 
+    /// Per channel ∫ L max(ω·n, 0) dω over leaves [a, z) of tree node k's subtree: split by the
+    /// horizon of n by a walk down the tree ([`LightTree::split_by_horizon`]), the sub-ranges wholly
+    /// above by their radiant moments (exact up to per-leaf constant radiance; `moment` is [a, z)'s
+    /// own, already read), the nodes of ≤ `coarse_leaves` leaves astride it clipped at their mean
+    /// radiance. Shared by the transfer and the PRT renderer.
+    pub fn clipped_cosine_power(&self, tree: &LightTree, k: usize, a: usize, z: usize, n: DVec3, coarse_leaves: u32, moment: &[DVec3; 3]) -> [f64; 3] {
+        let mut cos_power = [0.0f64; 3];
+        tree.split_by_horizon(k, a, z, n, coarse_leaves, &mut |lo, hi, clipped| match clipped {
+            None => {
+                let own;
+                let m = if (lo, hi) == (a, z) {
+                    moment
+                } else {
+                    own = self.radiant_moment(lo, hi);
+                    &own
+                };
+                for c in 0..3 {
+                    cos_power[c] += m[c].dot(n).max(0.0);
+                }
+            }
+            Some(ci) if hi == lo + 1 => {
+                let l = self.leaf_radiance[lo];
+                for c in 0..3 {
+                    cos_power[c] += l[c] * ci;
+                }
+            }
+            Some(ci) => {
+                let (power, omega) = (self.power(lo, hi), self.omega(lo, hi));
+                if omega > 0.0 {
+                    for c in 0..3 {
+                        cos_power[c] += power[c] / omega * ci;
+                    }
+                }
+            }
+        });
+        cos_power
+    }
+
     /// |C_k| L_k: the node's radiant power per unit area (Σ over its leaves of Ω L).
     pub fn node_power(&self, node: &TreeNode) -> [f64; 3] {
         self.power(node.first as usize, (node.first + node.count) as usize)

@@ -6,10 +6,12 @@
 //! back faces are kept (a single-sided test would drop thin or open geometry). Triangles with a vertex
 //! at or behind the camera plane are skipped (objects are framed in front of the camera).
 //!
-//! Invariants: barycentrics sum to 1 and are ≥ 0 (within rounding); deterministic; no IO.
+//! Invariants: barycentrics sum to 1 and are ≥ 0 (within rounding); deterministic (the same
+//! fragments whatever the thread count); no IO.
 
 use crate::scene::{Camera, Mesh};
 use glam::{Vec3, Vec4Swizzles};
+use rayon::prelude::*;
 
 /// One covered pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,26 +30,48 @@ pub fn rasterize(mesh: &Mesh, camera: &Camera, width: u32, height: u32) -> Vec<F
     rasterize_triangles(&mesh.positions, &mesh.triangles, camera, width, height)
 }
 
-/// [`rasterize`] over bare positions and triangles (e.g. a subdivided shading mesh).
+/// [`rasterize`] over bare positions and triangles (e.g. a subdivided shading mesh). The triangles
+/// are split into one chunk per thread, each rasterised into its own depth buffer, and the buffers
+/// merged nearest first with ties to the lower triangle index: the result of one sequential pass.
 pub fn rasterize_triangles(positions: &[Vec3], triangles: &[[u32; 3]], camera: &Camera, width: u32, height: u32) -> Vec<Fragment> {
     let clip_from_world = camera.clip_from_world();
+    let clip: Vec<glam::Vec4> = positions.par_iter().map(|p| clip_from_world * p.extend(1.0)).collect();
+    let chunk = triangles.len().div_ceil(rayon::current_num_threads().max(1)).max(4096);
+    let buffers: Vec<Vec<Option<Fragment>>> =
+        triangles.par_chunks(chunk).enumerate().map(|(c, tris)| rasterize_chunk(&clip, tris, c * chunk, width, height)).collect();
+    let mut buffers = buffers.into_iter();
+    let Some(mut best) = buffers.next() else { return Vec::new() };
+    for other in buffers {
+        for (b, o) in best.iter_mut().zip(other) {
+            if let Some(o) = o {
+                match b {
+                    // Later chunks hold higher triangle indices: on a tie the earlier one stays.
+                    Some(f) if f.depth <= o.depth => {}
+                    _ => *b = Some(o),
+                }
+            }
+        }
+    }
+    best.into_iter().flatten().collect()
+}
+
+/// The nearest fragment per pixel of `triangles` (indices from `first`) over clip-space positions.
+fn rasterize_chunk(clip: &[glam::Vec4], triangles: &[[u32; 3]], first: usize, width: u32, height: u32) -> Vec<Option<Fragment>> {
     let (w, h) = (width as usize, height as usize);
     let mut depth = vec![f32::INFINITY; w * h];
     let mut best: Vec<Option<Fragment>> = vec![None; w * h];
-    let clip: Vec<glam::Vec4> = positions.iter().map(|p| clip_from_world * p.extend(1.0)).collect();
     for (t, tri) in triangles.iter().enumerate() {
-        let Some(c) = tri.iter().map(|&i| clip.get(i as usize).copied()).collect::<Option<Vec<_>>>() else { continue };
+        let t = first + t;
+        let (Some(&c0), Some(&c1), Some(&c2)) = (clip.get(tri[0] as usize), clip.get(tri[1] as usize), clip.get(tri[2] as usize)) else { continue };
+        let c = [c0, c1, c2];
         if c.iter().any(|v| v.w.is_nan() || v.w <= 1e-6 || !v.is_finite()) {
             continue;
         }
         // Screen positions (pixels) and 1/w.
-        let s: Vec<Vec3> = c
-            .iter()
-            .map(|v| {
-                let ndc = v.xyz() / v.w;
-                Vec3::new((ndc.x + 1.0) * 0.5 * width as f32, (1.0 - ndc.y) * 0.5 * height as f32, ndc.z)
-            })
-            .collect();
+        let s: [Vec3; 3] = c.map(|v| {
+            let ndc = v.xyz() / v.w;
+            Vec3::new((ndc.x + 1.0) * 0.5 * width as f32, (1.0 - ndc.y) * 0.5 * height as f32, ndc.z)
+        });
         let inv_w = [1.0 / c[0].w, 1.0 / c[1].w, 1.0 / c[2].w];
         let area = edge(s[0], s[1], s[2]);
         if area.abs() < 1e-12 {
@@ -86,7 +110,7 @@ pub fn rasterize_triangles(positions: &[Vec3], triangles: &[[u32; 3]], camera: &
             }
         }
     }
-    best.into_iter().flatten().collect()
+    best
 }
 
 /// The vertices of the triangles that cover at least one pixel of the view, ascending: what must be
@@ -127,6 +151,31 @@ pub(crate) mod tests {
         };
         let bounds = Bounds { min: Vec3::new(-1.0, -1.0, -0.1), max: Vec3::new(1.0, 1.0, 0.1) };
         (mesh, orbit_camera(&bounds, 0.0, 0.0, 0.0, 200, 200))
+    }
+
+    #[test]
+    fn chunked_rasterisation_equals_one_sequential_pass() {
+        // 20,000 random overlapping triangles, each drawn twice (exact depth ties), so the chunks
+        // overlap everywhere: the fragments with 1 and 3 threads are identical, and every tie goes to
+        // the lower triangle index (even ones: each pair is (2i, 2i + 1)).
+        let mut rng = crate::math::Rng::new(5);
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for i in 0..10_000u32 {
+            let c = Vec3::new(rng.next_f64() as f32 - 0.5, rng.next_f64() as f32 - 0.5, rng.next_f64() as f32 * 0.2 - 0.1);
+            for _ in 0..3 {
+                positions.push(c + Vec3::new(rng.next_f64() as f32 * 0.2 - 0.1, rng.next_f64() as f32 * 0.2 - 0.1, rng.next_f64() as f32 * 0.02));
+            }
+            let t = [3 * i, 3 * i + 1, 3 * i + 2];
+            triangles.push(t);
+            triangles.push(t);
+        }
+        let (_, camera) = unit_quad_scene();
+        let run = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| rasterize_triangles(&positions, &triangles, &camera, 96, 80));
+        let (one, three) = (run(1), run(3));
+        assert!(one.len() > 800, "{}", one.len());
+        assert_eq!(one, three);
+        assert!(one.iter().all(|f| f.triangle % 2 == 0));
     }
 
     #[test]

@@ -374,7 +374,7 @@ fn profile_frame() {
             n = std::hint::black_box(ctx.compute(&light, &camera, w, h, 0.04)).pixels.len();
             best = best.min(t0.elapsed().as_secs_f64());
         }
-        println!("{mesh} {w}x{h} transfer: {n} pixels, {} shading nodes, best {best:.3} s", ctx.shading_nodes());
+        println!("{mesh} {w}x{h} transfer: {n} pixels, shading partitions {:?}, best {best:.3} s", ctx.shading_partitions());
         return;
     }
     let t0 = std::time::Instant::now();

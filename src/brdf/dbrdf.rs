@@ -11,8 +11,8 @@
 //! changes a rendered value by more than the floor itself.
 //!
 //! Inputs: local unit directions, F0, a lobe set and coefficients. Outputs: finite, non-negative values
-//! when the coefficients are non-negative. Invariant: f_s(wi, wo) = f_s(wo, wi) (s and h are symmetric;
-//! wi·h = wo·h).
+//! when the coefficients are non-negative. Invariant: f_s(wi, wo) = f_s(wo, wi) exactly, rounding included (s is
+//! computed from symmetric parts: wi·wo and the cosines ordered by size).
 
 use super::fresnel::schlick;
 use crate::sphere::LobeSet;
@@ -24,9 +24,10 @@ pub const DENOMINATOR_FLOOR: f64 = 1e-12;
 /// d = k1 + k2 − k1 k2, computed without cancellation, with k clamped to [0, 1] and floored.
 #[inline]
 pub fn denominator(k1: f64, k2: f64) -> f64 {
-    let k1 = k1.clamp(0.0, 1.0);
-    let k2 = k2.clamp(0.0, 1.0);
-    (k1 + k2 * (1.0 - k1)).max(DENOMINATOR_FLOOR)
+    // The larger cosine first, so that d(k1, k2) and d(k2, k1) round alike (exact reciprocity).
+    let (hi, lo) = if k1 >= k2 { (k1, k2) } else { (k2, k1) };
+    let (hi, lo) = (hi.clamp(0.0, 1.0), lo.clamp(0.0, 1.0));
+    (hi + lo * (1.0 - hi)).max(DENOMINATOR_FLOOR)
 }
 
 /// normalize(wi + wo), or None when wi = −wo (no half-vector).
@@ -42,8 +43,13 @@ pub fn static_term(wi: DVec3, wo: DVec3, f0: f64) -> f64 {
     if !(k1 > 0.0 && k2 > 0.0) {
         return 0.0;
     }
-    let Some(h) = half_vector(wi, wo) else { return 0.0 };
-    static_term_parts(k1, k2, wi.dot(h), f0)
+    // wi·h = wo·h = √((1 + wi·wo)/2): symmetric in its rounding too (wi·h and wo·h computed from h
+    // differ by an ulp, which (1 − c)^5 amplifies near c = 1).
+    let d = wi.dot(wo);
+    if !(d > -1.0) {
+        return 0.0;
+    }
+    static_term_parts(k1, k2, ((1.0 + d) * 0.5).sqrt(), f0)
 }
 
 /// s from its parts: k1 = wi·n, k2 = wo·n, c = wi·h.

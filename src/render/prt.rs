@@ -433,30 +433,7 @@ impl<'a> Prt<'a> {
             // ∫ L max(ω·n, 0) dω over the run: the radiant moment · n where the run lies wholly above
             // the horizon (exact up to per-leaf constant radiance), else split by walking down the tree
             // (sub-ranges above by their moments, nodes astride the horizon clipped).
-            let mut cos_power = [0.0f64; 3];
-            self.tree.split_by_horizon(nodes[si] as usize, a, z, n, self.settings.horizon_leaves, &mut |lo, hi, clipped| match clipped {
-                None => {
-                    let m = if (lo, hi) == (a, z) { moment } else { light.radiant_moment(lo, hi) };
-                    for c in 0..3 {
-                        cos_power[c] += m[c].dot(n).max(0.0);
-                    }
-                }
-                Some(ci) if hi == lo + 1 => {
-                    let l = light.leaf_radiance()[lo];
-                    for c in 0..3 {
-                        cos_power[c] += l[c] * ci;
-                    }
-                }
-                Some(ci) => {
-                    // A coarse node astride the horizon: its mean radiance times its clipped cosine.
-                    let (power, omega) = (light.power(lo, hi), light.omega(lo, hi));
-                    if omega > 0.0 {
-                        for c in 0..3 {
-                            cos_power[c] += power[c] / omega * ci;
-                        }
-                    }
-                }
-            });
+            let cos_power = light.clipped_cosine_power(self.tree, nodes[si] as usize, a, z, n, self.settings.horizon_leaves, &moment);
             if cos_power.iter().all(|&x| x <= 0.0) {
                 return;
             }
