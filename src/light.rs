@@ -46,6 +46,39 @@ pub struct LightSource {
     /// (direction, power Ω·(L − τ)) of 4×4 sub-samples of every texel above τ, unrotated.
     excess: Vec<(DVec3, [f64; 3])>,
     env_texel_angle: f64,
+    /// The base part's sample points for the first direction set asked for, kept across rotations.
+    samples: std::sync::OnceLock<std::sync::Arc<BaseSamples>>,
+}
+
+/// Where the base part is read for each direction-set texel: k×k points as equirectangular (u, v) at
+/// rotation 0 and their weights. A rotation about +Y only adds rotation/2π to u, so a rotation's sums
+/// need no trigonometry (`lookup_uv` at u + shift instead of `lookup` at a rotated direction).
+struct BaseSamples {
+    resolution: usize,
+    k: usize,
+    /// (u, v, weight), k² per texel, in texel order.
+    points: Vec<(f64, f64, f64)>,
+}
+
+impl std::fmt::Debug for BaseSamples {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "BaseSamples {{ resolution: {}, k: {}, points: {} }}", self.resolution, self.k, self.points.len())
+    }
+}
+
+impl BaseSamples {
+    fn new(set: &DirectionSet, k: usize) -> Self {
+        let points = (0..set.len())
+            .into_par_iter()
+            .flat_map_iter(|t| {
+                set.texel_samples(t, k).map(|(d, w)| {
+                    let (u, v) = crate::env::direction_to_uv(d);
+                    (u, v, w)
+                })
+            })
+            .collect();
+        Self { resolution: set.resolution(), k, points }
+    }
 }
 
 /// Sub-samples per side of an environment texel above τ.
@@ -81,7 +114,7 @@ impl LightSource {
                 }
             }
         }
-        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64 }
+        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64, samples: std::sync::OnceLock::new() }
     }
 
     /// Number of excess sub-samples (texels above τ × 16).
@@ -106,12 +139,19 @@ pub fn texel_radiance(env: &EnvMap, set: &DirectionSet, rotation_rad: f64) -> Ve
 /// [`texel_radiance`] from a prepared [`LightSource`] (what a rotation slider calls).
 pub fn texel_radiance_from(source: &LightSource, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
     let k = ((set.texel_angle() / source.env_texel_angle).ceil() as usize).clamp(1, 8);
-    let mut radiance: Vec<[f64; 3]> = (0..set.len())
-        .into_par_iter()
-        .map(|t| {
+    // The sample points of the first set asked for are kept (a source serves one bake's set); another
+    // set's are made for this call.
+    let cached = source.samples.get_or_init(|| std::sync::Arc::new(BaseSamples::new(set, k)));
+    let samples = if cached.resolution == set.resolution() && cached.k == k { cached.clone() } else { std::sync::Arc::new(BaseSamples::new(set, k)) };
+    // lookup(d, θ) reads the map at d rotated by −θ about +Y, whose azimuth is d's plus θ.
+    let shift = rotation_rad / (2.0 * std::f64::consts::PI);
+    let mut radiance: Vec<[f64; 3]> = samples
+        .points
+        .par_chunks(k * k)
+        .map(|points| {
             let mut sum = [0.0f64; 3];
-            for (d, w) in set.texel_samples(t, k) {
-                let l = source.base.lookup(d, rotation_rad);
+            for &(u, v, w) in points {
+                let l = source.base.lookup_uv(u + shift, v);
                 for c in 0..3 {
                     sum[c] += w * l[c];
                 }
@@ -282,6 +322,33 @@ mod tests {
         }
         let total = sums.power(0, tree.leaf_count());
         assert!((total[0] - 4.0 * std::f64::consts::PI).abs() < 1e-10);
+    }
+
+    #[test]
+    fn a_rotation_as_a_shift_in_u_equals_reading_rotated_directions() {
+        // The kept sample points read at u + θ/2π against each texel's samples read at their direction
+        // rotated by −θ (trigonometry, no cache), for the set the source keeps and for another one.
+        let env = EnvMap::from_fn(128, 64, |d| [(1.0 + d.x + 0.5 * d.y * d.z) as f32, (1.5 + (3.0 * d.x).sin()) as f32, (2.0 + d.z) as f32]).unwrap();
+        let source = LightSource::new(&env);
+        for resolution in [16, 12, 16] {
+            let set = DirectionSet::cube(resolution).unwrap();
+            for rotation in [0.0, 0.7, -2.9, 7.5] {
+                let got = texel_radiance_from(&source, &set, rotation);
+                let k = ((set.texel_angle() / source.env_texel_angle).ceil() as usize).clamp(1, 8);
+                for t in (0..set.len()).step_by(7) {
+                    let mut want = [0.0f64; 3];
+                    for (d, w) in set.texel_samples(t, k) {
+                        let l = source.base.lookup(d, rotation);
+                        for c in 0..3 {
+                            want[c] += w * l[c];
+                        }
+                    }
+                    for c in 0..3 {
+                        assert!((got[t][c] - want[c]).abs() <= 1e-9 * want[c].abs().max(1.0), "n {resolution}, θ {rotation}, texel {t}: {:?} vs {want:?}", got[t]);
+                    }
+                }
+            }
+        }
     }
 
     #[test]

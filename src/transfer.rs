@@ -455,14 +455,14 @@ impl<'a> TransferContext<'a> {
             // per-leaf constant radiance) when it lies wholly above the horizon (the shading node's
             // corner cone settles most runs at once), else split by a walk down the tree into
             // sub-ranges above (their radiant moments) and nodes astride (clipped at their mean
-            // radiance). A whole shading node wholly below the horizon is skipped by its cone.
+            // radiance). A run in a shading node wholly below the horizon is skipped by its cone.
             let cone = &part.cones[si];
             let cb = cone.axis.dot(normal);
-            if whole && cone.cos > 0.0 && cb < -cone.sin {
+            if cone.cos > 0.0 && cb < -cone.sin {
                 return;
             }
             let radiant = if whole { node_light[si].radiant } else { light.radiant_moment(a, z) };
-            let cos_power: [f64; 3] = if whole && cone.cos > 0.0 && cb > cone.sin {
+            let cos_power: [f64; 3] = if cone.cos > 0.0 && cb > cone.sin {
                 std::array::from_fn(|c| radiant[c].dot(normal))
             } else {
                 light.clipped_cosine_power(self.tree, part.nodes[si] as usize, a, z, normal, coarse_leaves, &radiant)

@@ -39,7 +39,7 @@
 use super::image::Image;
 use super::table::{PhTable, filtered_exact};
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::static_term;
+use crate::brdf::dbrdf::{static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{rasterize, rasterize_triangles};
 use crate::scene::{Camera, Mesh};
@@ -424,16 +424,21 @@ impl<'a> Prt<'a> {
         for_each_run(&lists[..count], &weights[..count], ranges, leaves, |a, z, vis, si| {
             let cone = self.tree.corner_cone(nodes[si] as usize);
             // A partition node wholly below the horizon contributes nothing.
+            // (angle(axis, n) ≥ 90° + the half-angle: cos ≤ −sin of the half-angle, no square root.)
             let cb = cone.axis.dot(n);
-            let sb = (1.0 - cb * cb).max(0.0).sqrt();
-            if cb < 0.0 && cb * cone.cos + sb * cone.sin <= 0.0 {
+            if cone.cos >= 0.0 && cb <= -cone.sin {
                 return;
             }
             let moment = light.radiant_moment(a, z);
             // ∫ L max(ω·n, 0) dω over the run: the radiant moment · n where the run lies wholly above
             // the horizon (exact up to per-leaf constant radiance), else split by walking down the tree
             // (sub-ranges above by their moments, nodes astride the horizon clipped).
-            let cos_power = light.clipped_cosine_power(self.tree, nodes[si] as usize, a, z, n, self.settings.horizon_leaves, &moment);
+            // A partition node wholly above the horizon (its corner cone) settles every run in it.
+            let cos_power: [f64; 3] = if cone.cos > 0.0 && cb > cone.sin {
+                std::array::from_fn(|c| moment[c].dot(n))
+            } else {
+                light.clipped_cosine_power(self.tree, nodes[si] as usize, a, z, n, self.settings.horizon_leaves, &moment)
+            };
             if cos_power.iter().all(|&x| x <= 0.0) {
                 return;
             }
@@ -452,8 +457,30 @@ impl<'a> Prt<'a> {
     /// `v_omega`; `None` when that direction is below the horizon or undefined, or there is no
     /// specular term.
     #[inline]
-    fn run_specular(&self, lum_moment: DVec3, v_omega: f64, frame: &Frame, wo: DVec3, f0: f64, specular: Specular) -> Option<(f64, [f64; 3])> {
+    fn run_specular(&self, lum_moment: DVec3, v_omega: f64, frame: &Frame, wo: DVec3, wo_world: DVec3, f0: f64, specular: Specular) -> Option<(f64, [f64; 3])> {
         let dir = lum_moment.try_normalize()?;
+        if let Specular::Table(t) = specular
+            && !self.settings.texel_lookups
+            && t.has_profile()
+        {
+            // An isotropic table needs only cos θh: from wi·n, wo·n and wi·wo, with |wi + wo| =
+            // √(2 + 2 wi·wo) (no local frame, one square root), as the transfer does.
+            let k1 = dir.dot(frame.normal);
+            let c = dir.dot(wo_world);
+            let len2 = 2.0 + 2.0 * c;
+            if k1 <= 0.0 || !(len2 > 1e-24) {
+                return None;
+            }
+            let inv = 1.0 / len2.sqrt();
+            let wo_h = (1.0 + c) * inv;
+            let s = static_term_parts(k1, wo.z, wo_h, f0);
+            if !(s > 0.0) {
+                return None;
+            }
+            let spread = if self.settings.prefilter { v_omega / (4.0 * wo_h.max(1e-3)) } else { 0.0 };
+            let h = DVec3::new(0.0, 0.0, ((k1 + wo.z) * inv).min(1.0));
+            return t.lookup_profile_filtered(h, spread).map(|p| (s, p));
+        }
         let wi = frame.to_local(dir);
         if wi.z <= 0.0 {
             return None;
@@ -479,7 +506,8 @@ impl<'a> Prt<'a> {
     /// Outgoing radiance at a shading point seen from `eye`.
     pub fn shade_point(&self, point: &ShadingPoint, light: &LightSums, eye: DVec3, shading: &Shading) -> [f64; 3] {
         let Some((corners, count, position, n, frame)) = self.point_geometry(point) else { return [0.0; 3] };
-        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(n));
+        let wo_world = (eye - position).try_normalize().unwrap_or(n);
+        let wo = frame.to_local(wo_world);
         // Where the shading normal faces away from the eye only the diffuse term is kept.
         let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
         let has_specular = !matches!(specular, Specular::None);
@@ -488,7 +516,7 @@ impl<'a> Prt<'a> {
             for c in 0..3 {
                 e[c] += vis_cos_power[c];
             }
-            if has_specular && let Some((s, p)) = self.run_specular(lum_moment, v_omega, &frame, wo, shading.f0, specular) {
+            if has_specular && let Some((s, p)) = self.run_specular(lum_moment, v_omega, &frame, wo, wo_world, shading.f0, specular) {
                 for c in 0..3 {
                     spec[c] += vis_cos_power[c] * s * p[c];
                 }
@@ -534,13 +562,14 @@ impl<'a> Prt<'a> {
         let v = point.as_vertex()?;
         let entry = cache.vertices.get(v as usize)?.as_ref()?;
         let Some((_, _, position, n, frame)) = self.point_geometry(point) else { return Some([0.0; 3]) };
-        let wo = frame.to_local((eye - position).try_normalize().unwrap_or(n));
+        let wo_world = (eye - position).try_normalize().unwrap_or(n);
+        let wo = frame.to_local(wo_world);
         let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
         let mut spec = [0.0f64; 3];
         if !matches!(specular, Specular::None) {
             for run in &entry.runs {
                 let dir = glam::Vec3::from_array(run.dir).as_dvec3();
-                if let Some((s, p)) = self.run_specular(dir, run.v_omega as f64, &frame, wo, shading.f0, specular) {
+                if let Some((s, p)) = self.run_specular(dir, run.v_omega as f64, &frame, wo, wo_world, shading.f0, specular) {
                     for c in 0..3 {
                         spec[c] += run.vis_cos_power[c] as f64 * s * p[c];
                     }

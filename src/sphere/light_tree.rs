@@ -270,9 +270,19 @@ pub fn disc_clipped_cosine(omega: f64, moment_n: f64) -> f64 {
     }
     let u = -s;
     let root = (1.0 - u * u).max(0.0).sqrt();
-    let share = (2.0 / std::f64::consts::PI) * (std::f64::consts::FRAC_PI_4 - 0.5 * (u * root + u.asin()));
+    let share = (2.0 / std::f64::consts::PI) * (std::f64::consts::FRAC_PI_4 - 0.5 * (u * root + asin_fast(u)));
     let first = (2.0 / (3.0 * std::f64::consts::PI)) * root * root * root;
     omega * beta * (s * share + first)
+}
+
+/// asin(x) on [−1, 1] to within 2.2e-8 (Abramowitz & Stegun 4.4.46: π/2 − √(1 − |x|) · a degree-7
+/// polynomial), a fraction of libm's cost: the disc clip ran once per coarse node astride a horizon.
+#[inline]
+fn asin_fast(x: f64) -> f64 {
+    let a = x.abs().min(1.0);
+    let p = 1.570_796_305_0 + a * (-0.214_598_801_6 + a * (0.088_978_987_4 + a * (-0.050_174_304_6 + a * (0.030_891_881_0 + a * (-0.017_088_125_6 + a * (0.006_670_090_1 + a * -0.001_262_491_1))))));
+    let r = std::f64::consts::FRAC_PI_2 - (1.0 - a).sqrt() * p;
+    if x < 0.0 { -r } else { r }
 }
 
 /// Nodes of the tree no wider than a given angle, covering every leaf once (see [`LightTree::partition`]).
@@ -473,6 +483,12 @@ mod tests {
                 assert_eq!(worst_band, 0.0, "coarse_leaves ≤ 1 is the leaf walk itself");
             }
         }
+    }
+
+    #[test]
+    fn asin_fast_is_within_3e_8_of_asin() {
+        let worst = (0..=200_000).map(|i| -1.0 + i as f64 * 1e-5).map(|x| (asin_fast(x) - x.asin()).abs()).fold(0.0f64, f64::max);
+        assert!(worst < 3e-8, "{worst}");
     }
 
     #[test]
