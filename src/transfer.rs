@@ -110,6 +110,8 @@ struct RingFilter {
     res: usize,
     /// x = 2λv of each level, increasing from 0.
     levels: Vec<f64>,
+    /// 1/(1 + x) of each level: the filtered lobe's peak, in which levels are blended.
+    peaks: Vec<f64>,
     /// 2λ, to turn a spread into x.
     two_lambda: f64,
     /// Rows, ((level · J) + j) · (res + 1) + k.
@@ -148,7 +150,7 @@ impl RingFilter {
                 support.push((first, last));
             }
         }
-        Self { res, levels: Self::LEVELS.to_vec(), two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
+        Self { res, levels: Self::LEVELS.to_vec(), peaks: Self::LEVELS.iter().map(|x| 1.0 / (1.0 + x)).collect(), two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
     /// Level and the weight of the level above for a spread v (rad², half-vector space).
@@ -169,8 +171,8 @@ impl RingFilter {
         }
         // Linear in 1/(1 + x), the filtered lobe's peak, rather than in x: exact at the peak, and within
         // 0.3 % of it between levels (`filtered_ring_rows_match_a_monte_carlo_average_under_jitter`).
-        let (ua, ub, u) = (1.0 / (1.0 + self.levels[l]), 1.0 / (1.0 + self.levels[l + 1]), 1.0 / (1.0 + x));
-        (l, (ua - u) / (ua - ub))
+        let (ua, ub) = (self.peaks[l], self.peaks[l + 1]);
+        (l, (ua - 1.0 / (1.0 + x)) / (ua - ub))
     }
 
     /// Table position of cos θh: point k and the weight of k + 1.
