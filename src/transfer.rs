@@ -248,7 +248,7 @@ struct NodeLight {
 /// The shading partitions of ring (isotropic) lobe sets: (node half-angle in units of the lobe's σ,
 /// the smallest wo·n of a pixel that uses it), coarsest first. A lobe σ wide in half-vector space is
 /// about 2σ·(wo·h) wide in wi-space along one axis, so grazing views need finer nodes. What the node
-/// size costs, measured 2026-11-25 (release, 2 cores):
+/// size costs, measured 2026-11-24 (release, 2 cores):
 /// - alone, under a uniform sky (`tests/hard_cases.rs`, one ring lobe along n at the paper's σ on a
 ///   sphere, against brute-force albedo, relative L1 over the image): every pixel at σ/4 0.08 %, σ/2
 ///   0.21 %, 0.75σ 0.44 %, σ 0.73 %, 1.5σ 1.6 % (pre-filtering takes 1.5σ from 2.3 % to 1.6 %); these

@@ -92,7 +92,7 @@ fn preview_settings(gpu: bool) -> PrtSettings {
 /// The CPU preview's horizon clip ([`PrtSettings::horizon_leaves`]): nodes of ≤ 64 leaves (~11°)
 /// astride a vertex's horizon are clipped whole by the disc model. dragon_100k at 640×480 under
 /// courtyard, vertex shading at 16°: the first frame after a light rotation 0.131 → 0.099 s, 2.6e-3
-/// relative RMSE against clipping leaf by leaf (4.9e-4 at the default 16 leaves), 2026-11-25.
+/// relative RMSE against clipping leaf by leaf (4.9e-4 at the default 16 leaves), 2026-11-24.
 pub const CPU_PREVIEW_HORIZON_LEAVES: u32 = 64;
 
 /// The CPU preview's render partition (degrees), see [`preview_settings`].
