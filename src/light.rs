@@ -40,14 +40,21 @@ pub struct LightSums {
 /// An environment prepared for light sums at any rotation: radiance split at τ = 16 × the map's mean
 /// (per channel) into a smooth *base* min(L, τ) and the *excess* max(L − τ, 0) of the few texels above
 /// it (suns, lamps), the latter as sub-sampled point powers.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct LightSource {
     base: EnvMap,
     /// (direction, power Ω·(L − τ)) of 4×4 sub-samples of every texel above τ, unrotated.
     excess: Vec<(DVec3, [f64; 3])>,
     env_texel_angle: f64,
-    /// The base part's sample points for the first direction set asked for, kept across rotations.
-    samples: std::sync::OnceLock<std::sync::Arc<BaseSamples>>,
+    /// The base part's sample points for the last direction set asked for, kept across rotations.
+    samples: std::sync::Mutex<Option<std::sync::Arc<BaseSamples>>>,
+}
+
+impl Clone for LightSource {
+    fn clone(&self) -> Self {
+        let samples = self.samples.lock().map(|s| s.clone()).unwrap_or(None);
+        Self { base: self.base.clone(), excess: self.excess.clone(), env_texel_angle: self.env_texel_angle, samples: std::sync::Mutex::new(samples) }
+    }
 }
 
 /// Where the base part is read for each direction-set texel: k×k points as equirectangular (u, v) at
@@ -114,7 +121,7 @@ impl LightSource {
                 }
             }
         }
-        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64, samples: std::sync::OnceLock::new() }
+        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64, samples: std::sync::Mutex::new(None) }
     }
 
     /// Number of excess sub-samples (texels above τ × 16).
@@ -139,10 +146,15 @@ pub fn texel_radiance(env: &EnvMap, set: &DirectionSet, rotation_rad: f64) -> Ve
 /// [`texel_radiance`] from a prepared [`LightSource`] (what a rotation slider calls).
 pub fn texel_radiance_from(source: &LightSource, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
     let k = ((set.texel_angle() / source.env_texel_angle).ceil() as usize).clamp(1, 8);
-    // The sample points of the first set asked for are kept (a source serves one bake's set); another
-    // set's are made for this call.
-    let cached = source.samples.get_or_init(|| std::sync::Arc::new(BaseSamples::new(set, k)));
-    let samples = if cached.resolution == set.resolution() && cached.k == k { cached.clone() } else { std::sync::Arc::new(BaseSamples::new(set, k)) };
+    // The sample points of the last set asked for are kept: a rotation slider asks for one set.
+    let kept = source.samples.lock().ok().and_then(|s| s.clone()).filter(|s| s.resolution == set.resolution() && s.k == k);
+    let samples = kept.unwrap_or_else(|| {
+        let made = std::sync::Arc::new(BaseSamples::new(set, k));
+        if let Ok(mut slot) = source.samples.lock() {
+            *slot = Some(made.clone());
+        }
+        made
+    });
     // lookup(d, θ) reads the map at d rotated by −θ about +Y, whose azimuth is d's plus θ.
     let shift = rotation_rad / (2.0 * std::f64::consts::PI);
     let mut radiance: Vec<[f64; 3]> = samples

@@ -10,8 +10,7 @@
 //!
 //! How a pixel is summed: its triangle's three vertex cuts and a *shading partition* (tree nodes no
 //! wider than a fraction of the lobe's width, finer for grazing views: [`SHADING_TIERS`]) are merged
-//! into elementary runs of consecutive leaves (cut nodes are leaf ranges in tree order); groups of
-//! nodes wholly below the pixel's horizon are passed over at once. For each run the prefix sums give
+//! into elementary runs of consecutive leaves (cut nodes are leaf ranges in tree order). For each run the prefix sums give
 //! its radiant moment Σ L ∫ ω dω per channel and its power in O(1); V is the barycentric blend of the
 //! three vertices' V_k; ∫ L Ṽ uses the pixel's interpolated normal, exact (radiant moment · n) when the
 //! run lies above the horizon, and where it straddles it split by a walk down the tree into sub-ranges
@@ -28,8 +27,8 @@
 //! Invariants: no ray tracing (visibility comes from the bake; a new view or rotation only re-sums);
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
-use crate::bake::{Cuts, Span, for_each_run_skipping};
-use crate::brdf::dbrdf::{static_term, static_term_parts};
+use crate::bake::{Cuts, Span, for_each_run};
+use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::render::prt::LUMINANCE;
@@ -236,7 +235,7 @@ impl Transfer {
     }
 }
 
-/// A shading node's solid angle, moment and radiant power under the current light.
+/// A shading node's light under the current rotation (read once per compute, not per run).
 #[derive(Debug, Clone, Copy)]
 struct NodeLight {
     /// Per channel Σ L ∫ ω dω (the radiance-weighted moment).
@@ -278,33 +277,13 @@ struct ShadingPartition {
     nodes: Vec<u32>,
     /// Per node, its corner cone (copied from the tree so that runs read them in order).
     cones: Vec<PartitionCone>,
-    /// Per node, the skip group ([`SkipGroups`]) holding its first leaf.
-    group: Vec<u32>,
 }
 
 impl ShadingPartition {
-    fn new(tree: &LightTree, angle: f64, min_wo_z: f64, groups: &SkipGroups) -> Self {
+    fn new(tree: &LightTree, angle: f64, min_wo_z: f64) -> Self {
         let Partition { ranges, nodes, .. } = tree.partition(angle.max(1e-6));
         let cones = nodes.iter().map(|&k| *tree.corner_cone(k as usize)).collect();
-        let group = ranges.iter().map(|&(a, _)| groups.ends.partition_point(|&end| end <= a) as u32).collect();
-        Self { angle, min_wo_z, ranges, nodes, cones, group }
-    }
-}
-
-/// Coarse light-tree nodes (cones of at most [`SkipGroups::ANGLE_DEG`]) by which a pixel passes over
-/// the shading nodes below its horizon a group at a time instead of one by one.
-struct SkipGroups {
-    /// Per group, its end leaf (groups are consecutive leaf ranges from 0).
-    ends: Vec<u32>,
-    cones: Vec<PartitionCone>,
-}
-
-impl SkipGroups {
-    const ANGLE_DEG: f64 = 16.0;
-
-    fn new(tree: &LightTree) -> Self {
-        let Partition { ranges, nodes, .. } = tree.partition(Self::ANGLE_DEG.to_radians());
-        Self { ends: ranges.iter().map(|r| r.1).collect(), cones: nodes.iter().map(|&k| *tree.corner_cone(k as usize)).collect() }
+        Self { angle, min_wo_z, ranges, nodes, cones }
     }
 }
 
@@ -319,7 +298,9 @@ pub struct TransferContext<'a> {
     /// Shading partitions, coarsest first; a pixel uses the first whose `min_wo_z` its view cosine
     /// reaches.
     partitions: Vec<ShadingPartition>,
-    groups: SkipGroups,
+    /// Nodes astride a horizon are clipped whole up to about 5.6° across (16 leaves at 64 per cube
+    /// side, [`COARSE_HORIZON_LEAVES`]); on coarser direction sets, fewer leaves.
+    coarse_leaves: u32,
     /// Ring lobes only: their pre-filtered tables.
     ring: Option<RingFilter>,
 }
@@ -332,16 +313,15 @@ impl<'a> TransferContext<'a> {
     pub fn new(mesh: &'a Mesh, cuts: &'a Cuts, tree: &'a LightTree, lobes: &'a LobeSet, tangents: Option<&'a [Vec4]>, shading_angle: Option<f64>) -> Self {
         let sigma = srbf::sigma_from_lambda(lobes.lambda()).unwrap_or(0.08);
         let ring = lobes.layout().is_isotropic().then(|| RingFilter::new(lobes));
-        let groups = SkipGroups::new(tree);
         let partitions = match shading_angle {
-            Some(angle) => vec![ShadingPartition::new(tree, angle, 0.0, &groups)],
+            Some(angle) => vec![ShadingPartition::new(tree, angle, 0.0)],
             None if ring.is_some() => SHADING_TIERS
                 .iter()
-                .map(|&(angle, min_wo_z)| ShadingPartition::new(tree, (angle * sigma).min(MAX_SHADING_ANGLE.max(0.25 * sigma)), min_wo_z, &groups))
+                .map(|&(angle, min_wo_z)| ShadingPartition::new(tree, (angle * sigma).min(MAX_SHADING_ANGLE.max(0.25 * sigma)), min_wo_z))
                 .collect(),
-            None => vec![ShadingPartition::new(tree, 0.25 * sigma, 0.0, &groups)],
+            None => vec![ShadingPartition::new(tree, 0.25 * sigma, 0.0)],
         };
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), partitions, groups, ring }
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), partitions, coarse_leaves: (COARSE_HORIZON_LEAVES as usize * tree.leaf_count() / (6 * 64 * 64)).max(1) as u32, ring }
     }
 
     /// Number of nodes in each shading partition (over the whole sphere), coarsest first, with its
@@ -432,26 +412,11 @@ impl<'a> TransferContext<'a> {
         let leaves = self.tree.leaf_count() as u32;
         // Per filter level, the histogram points [lo, hi] this pixel touched.
         let mut touched = [(usize::MAX, 0usize); RingFilter::LEVELS.len()];
-        // Nodes astride the horizon are clipped whole up to about 5.6° across (16 leaves at 64 per cube
-        // side, [`COARSE_HORIZON_LEAVES`]); on coarser direction sets, fewer leaves.
-        let coarse_leaves = (COARSE_HORIZON_LEAVES as usize * self.tree.leaf_count() / (6 * 64 * 64)).max(1) as u32;
         // The coarsest partition this view direction allows (grazing views narrow the lobes in wi).
         // A pixel with no specular term (wo below its shading horizon) needs only E: the coarsest.
         let pi = if specular { self.partitions.iter().position(|p| wo.z >= p.min_wo_z).unwrap_or(self.partitions.len() - 1) } else { 0 };
         let (part, node_light) = (&self.partitions[pi], &node_light[pi]);
-        // Groups of shading nodes wholly below the horizon are passed over at once (the last group's
-        // answer is kept: consecutive nodes mostly share one).
-        let mut last_group = (u32::MAX, None);
-        let skip = |si: usize| {
-            let g = part.group[si];
-            if g != last_group.0 {
-                let cone = &self.groups.cones[g as usize];
-                let below = cone.cos > 0.0 && cone.axis.dot(normal) < -cone.sin;
-                last_group = (g, below.then(|| self.groups.ends[g as usize]));
-            }
-            last_group.1
-        };
-        for_each_run_skipping(&vertex_spans, &b, &part.ranges, leaves, skip, |a, z, vis, si| {
+        for_each_run(&vertex_spans, &b, &part.ranges, leaves, |a, z, vis, si| {
             let whole = part.ranges[si] == (a as u32, z as u32);
             // ∫ L max(ω·n, 0) dω over the run, per channel: its radiant moment · n (exact up to
             // per-leaf constant radiance) when it lies wholly above the horizon (the shading node's
@@ -467,7 +432,7 @@ impl<'a> TransferContext<'a> {
             let cos_power: [f64; 3] = if cone.cos > 0.0 && cb > cone.sin {
                 std::array::from_fn(|c| radiant[c].dot(normal))
             } else {
-                light.clipped_cosine_power(self.tree, part.nodes[si] as usize, a, z, normal, coarse_leaves, &radiant)
+                light.clipped_cosine_power(self.tree, part.nodes[si] as usize, a, z, normal, self.coarse_leaves, &radiant)
             };
             if cos_power.iter().all(|&x| x <= 0.0) {
                 return;
@@ -487,16 +452,9 @@ impl<'a> TransferContext<'a> {
             }
             let dir = lum * (1.0 / lum_len);
             if let Some(ring) = &self.ring {
-                // Ring lobes need only h·n: from wi·n, wo·n and wi·wo, with |wi + wo| = √(2 + 2 wi·wo)
-                // (no local frame, one square root).
+                // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame).
                 let k1 = dir.dot(normal);
-                let c = dir.dot(wo_world);
-                let len2 = 2.0 + 2.0 * c;
-                if k1 <= 0.0 || len2.is_nan() || len2 <= 1e-24 {
-                    return;
-                }
-                let inv = 1.0 / len2.sqrt();
-                let wo_h = (1.0 + c) * inv;
+                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, dir.dot(wo_world)) else { return };
                 let s = static_term_parts(k1, wo.z, wo_h, f0);
                 if s <= 0.0 {
                     return;
@@ -507,7 +465,7 @@ impl<'a> TransferContext<'a> {
                 let v_omega = if lum_power > 0.0 { (1.0 - lum_len / lum_power).max(0.0) } else { 0.0 };
                 let (l, fl) = ring.level(v_omega / (4.0 * wo_h.max(1e-3)));
                 // Σ_j g_j(x, t) w: the weight goes to the two levels and two points around (x, t).
-                let (k, fk) = ring.position((k1 + wo.z) * inv);
+                let (k, fk) = ring.position(cos_h);
                 let stride = 3 * (ring.res + 1);
                 for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
                     if wl == 0.0 {

@@ -29,7 +29,7 @@ pub use refine::{RefineSettings, Refinement};
 use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-pub use runs::{Span, for_each_run, for_each_run_skipping};
+pub use runs::{Span, for_each_run};
 pub use tracer::Tracer;
 
 /// Bake parameters (each a knob of the accuracy study).

@@ -33,15 +33,7 @@ impl Cuts {
 /// Calls `f(a, z, vis, partition_index)` for every run of leaves [a, z) with vis > 0, in leaf order.
 /// `lists` and `weights` pair up (at most three are used); `partition` covers [0, leaves) in order.
 #[inline]
-pub fn for_each_run(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)], leaves: u32, f: impl FnMut(usize, usize, f64, usize)) {
-    for_each_run_skipping(lists, weights, partition, leaves, |_| None, f)
-}
-
-/// [`for_each_run`] that first asks `skip(partition_index)`, where a run would start in a partition
-/// node, whether the leaves from there up to some end can be passed over (e.g. a group of nodes wholly
-/// below the horizon): `Some(end)` resumes at `end` (> the current leaf) without visiting them.
-#[inline]
-pub fn for_each_run_skipping(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)], leaves: u32, mut skip: impl FnMut(usize) -> Option<u32>, mut f: impl FnMut(usize, usize, f64, usize)) {
+pub fn for_each_run(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)], leaves: u32, mut f: impl FnMut(usize, usize, f64, usize)) {
     let n = lists.len().min(weights.len()).min(3);
     let mut idx = [0usize; 3];
     let (mut pos, mut si) = (0u32, 0usize);
@@ -50,12 +42,6 @@ pub fn for_each_run_skipping(lists: &[&[Span]], weights: &[f64], partition: &[(u
             si += 1;
         }
         let Some(&(_, part_end)) = partition.get(si) else { break };
-        if let Some(end) = skip(si) {
-            if end > pos {
-                pos = end;
-                continue;
-            }
-        }
         let mut next = part_end;
         let mut vis = 0.0f64;
         for c in 0..n {
@@ -93,17 +79,5 @@ mod tests {
         for_each_run(&[&a, &b], &[0.5, 0.5], &partition, 8, |a, z, v, si| runs.push((a, z, v, si)));
         // [0,2): a only; [2,3) and [3,4): both, split by the partition; [4,6): b only; [6,8): both.
         assert_eq!(runs, vec![(0, 2, 0.5, 0), (2, 3, 0.625, 0), (3, 4, 0.625, 1), (4, 6, 0.125, 1), (6, 8, 0.375, 1)]);
-    }
-
-    #[test]
-    fn skipping_passes_over_leaves_and_resumes_mid_node() {
-        let a = [Span { first: 0, end: 4, v: 1.0 }, Span { first: 6, end: 8, v: 0.5 }];
-        let b = [Span { first: 2, end: 8, v: 0.25 }];
-        let partition = [(0, 3), (3, 8)];
-        let mut runs = Vec::new();
-        // Skip from the first node's start to leaf 5 (inside the second node): the runs from there on
-        // are those of for_each_run clipped to [5, 8).
-        for_each_run_skipping(&[&a, &b], &[0.5, 0.5], &partition, 8, |si| (si == 0).then_some(5), |a, z, v, si| runs.push((a, z, v, si)));
-        assert_eq!(runs, vec![(5, 6, 0.125, 1), (6, 8, 0.375, 1)]);
     }
 }

@@ -36,6 +36,19 @@ pub fn half_vector(wi: DVec3, wo: DVec3) -> Option<DVec3> {
     (wi + wo).try_normalize()
 }
 
+/// The half-vector's cosines without a local frame, from k1 = wi·n, k2 = wo·n and c = wi·wo (unit
+/// directions): (wi·h = wo·h, h·n) = ((1 + c), (k1 + k2)) / |wi + wo| with |wi + wo| = √(2 + 2c) (one
+/// square root). `None` when wi is at or below the horizon or wi = −wo. What isotropic lobes need.
+#[inline]
+pub fn half_vector_cosines(k1: f64, k2: f64, c: f64) -> Option<(f64, f64)> {
+    let len2 = 2.0 + 2.0 * c;
+    if !(k1 > 0.0 && len2 > 1e-24) {
+        return None;
+    }
+    let inv = 1.0 / len2.sqrt();
+    Some(((1.0 + c) * inv, ((k1 + k2) * inv).min(1.0)))
+}
+
 /// s(wi, wo) = F(wi·h) / (4 d(k1, k2)); 0 when either direction is at or below the horizon.
 #[inline]
 pub fn static_term(wi: DVec3, wo: DVec3, f0: f64) -> f64 {

@@ -39,7 +39,7 @@
 use super::image::Image;
 use super::table::{PhTable, filtered_exact};
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::{static_term, static_term_parts};
+use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{rasterize, rasterize_triangles};
 use crate::scene::{Camera, Mesh};
@@ -463,22 +463,15 @@ impl<'a> Prt<'a> {
             && !self.settings.texel_lookups
             && t.has_profile()
         {
-            // An isotropic table needs only cos θh: from wi·n, wo·n and wi·wo, with |wi + wo| =
-            // √(2 + 2 wi·wo) (no local frame, one square root), as the transfer does.
+            // An isotropic table needs only cos θh ([`half_vector_cosines`]: no local frame).
             let k1 = dir.dot(frame.normal);
-            let c = dir.dot(wo_world);
-            let len2 = 2.0 + 2.0 * c;
-            if k1 <= 0.0 || !(len2 > 1e-24) {
-                return None;
-            }
-            let inv = 1.0 / len2.sqrt();
-            let wo_h = (1.0 + c) * inv;
+            let (wo_h, cos_h) = half_vector_cosines(k1, wo.z, dir.dot(wo_world))?;
             let s = static_term_parts(k1, wo.z, wo_h, f0);
             if !(s > 0.0) {
                 return None;
             }
             let spread = if self.settings.prefilter { v_omega / (4.0 * wo_h.max(1e-3)) } else { 0.0 };
-            let h = DVec3::new(0.0, 0.0, ((k1 + wo.z) * inv).min(1.0));
+            let h = DVec3::new(0.0, 0.0, cos_h);
             return t.lookup_profile_filtered(h, spread).map(|p| (s, p));
         }
         let wi = frame.to_local(dir);
