@@ -8,6 +8,7 @@
 // with V) walked together with the render partition, exactly as `bake::runs::for_each_run` does with
 // one list and `render::prt::Prt::shade_point` does per run. Every run is one light-tree node (cut and
 // partition nodes are nested or disjoint), so its light is read per node from `light`.
+// One flat loop, no nested ones: llvmpipe's 65,535-iteration budget is shared by all loops (`shade`).
 //
 // Must match: the Rust mirrors in src/gpu/uniforms.rs (ShadeUniforms, GpuVertex, CutEntry,
 // PartitionEntry, GpuLeaf, NodeLight) and the CPU reference src/render/prt.rs.
@@ -91,15 +92,6 @@ fn to_local(f: Frame, v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(v, f.t), dot(v, f.b), dot(v, f.n));
 }
 
-fn leaf_corner(leaf: GpuLeaf, k: u32) -> vec3<f32> {
-    switch k {
-        case 0u: { return leaf.c0.xyz; }
-        case 1u: { return leaf.c1.xyz; }
-        case 2u: { return leaf.c2.xyz; }
-        default: { return leaf.c3.xyz; }
-    }
-}
-
 fn leaf_wholly_above(leaf: GpuLeaf, n: vec3<f32>) -> bool {
     return dot(leaf.c0.xyz, n) >= 0.0 && dot(leaf.c1.xyz, n) >= 0.0 && dot(leaf.c2.xyz, n) >= 0.0 && dot(leaf.c3.xyz, n) >= 0.0;
 }
@@ -129,48 +121,64 @@ fn horizon_point(a: vec3<f32>, b: vec3<f32>, ha: f32, hb: f32) -> vec3<f32> {
 // stored the polygon in a dynamically indexed local array; on lavapipe that dropped leaves from the sum,
 // 8 % in the white furnace test of tests/gpu.rs.)
 fn clipped_cosine_integral(leaf: GpuLeaf, n: vec3<f32>) -> f32 {
-    var m = vec3<f32>(0.0);
-    var inside = vec3<f32>(0.0);
-    var corners_above = 0u;
-    var exit_point = vec3<f32>(0.0);
-    var entry_point = vec3<f32>(0.0);
-    var crossings = 0u;
-    for (var k = 0u; k < 4u; k++) {
-        let a = leaf_corner(leaf, k);
-        let b = leaf_corner(leaf, (k + 1u) % 4u);
-        let ha = dot(a, n);
-        let hb = dot(b, n);
-        if ha >= 0.0 {
-            inside += a;
-            corners_above++;
-            if hb >= 0.0 {
-                m += edge_moment(a, b);
-            } else {
-                let p = horizon_point(a, b, ha, hb);
-                m += edge_moment(a, p);
-                exit_point = p;
-                inside += p;
-                crossings++;
-            }
-        } else if hb >= 0.0 {
-            let p = horizon_point(a, b, ha, hb);
-            m += edge_moment(p, b);
-            entry_point = p;
-            inside += p;
-            crossings++;
-        }
-    }
-    if corners_above == 0u || corners_above + crossings < 3u {
+    // The four edges by calls, not a loop: every loop iteration counts against lavapipe's budget (see
+    // `shade`).
+    var c = ClipWalk(vec3<f32>(0.0), vec3<f32>(0.0), 0u, vec3<f32>(0.0), vec3<f32>(0.0), 0u);
+    c = clip_edge(c, leaf.c0.xyz, leaf.c1.xyz, n);
+    c = clip_edge(c, leaf.c1.xyz, leaf.c2.xyz, n);
+    c = clip_edge(c, leaf.c2.xyz, leaf.c3.xyz, n);
+    c = clip_edge(c, leaf.c3.xyz, leaf.c0.xyz, n);
+    if c.corners_above == 0u || c.corners_above + c.crossings < 3u {
         return 0.0;
     }
-    if crossings == 2u {
-        m += edge_moment(exit_point, entry_point);
+    var m = c.m;
+    if c.crossings == 2u {
+        m += edge_moment(c.exit_point, c.entry_point);
     }
     m *= 0.5;
-    if dot(m, inside) < 0.0 {
+    if dot(m, c.inside) < 0.0 {
         m = -m;
     }
     return max(dot(m, n), 0.0);
+}
+
+// The state of the walk around a clipped texel: the moment so far, a point inside (the sum of the
+// clipped polygon's vertices, for the orientation), and where the boundary leaves and re-enters the
+// upper hemisphere.
+struct ClipWalk {
+    m: vec3<f32>,
+    inside: vec3<f32>,
+    corners_above: u32,
+    exit_point: vec3<f32>,
+    entry_point: vec3<f32>,
+    crossings: u32,
+}
+
+// One texel edge a→b: the part of it above the horizon.
+fn clip_edge(walk: ClipWalk, a: vec3<f32>, b: vec3<f32>, n: vec3<f32>) -> ClipWalk {
+    var c = walk;
+    let ha = dot(a, n);
+    let hb = dot(b, n);
+    if ha >= 0.0 {
+        c.inside += a;
+        c.corners_above++;
+        if hb >= 0.0 {
+            c.m += edge_moment(a, b);
+        } else {
+            let p = horizon_point(a, b, ha, hb);
+            c.m += edge_moment(a, p);
+            c.exit_point = p;
+            c.inside += p;
+            c.crossings++;
+        }
+    } else if hb >= 0.0 {
+        let p = horizon_point(a, b, ha, hb);
+        c.m += edge_moment(p, b);
+        c.entry_point = p;
+        c.inside += p;
+        c.crossings++;
+    }
+    return c;
 }
 
 // ∫ max(ω·n, 0) dω over leaf i: its moment when wholly above the horizon, else the clipped texel.
@@ -256,6 +264,66 @@ fn table_lookup(h: vec3<f32>, spread: f32) -> vec3<f32> {
     return a + (b - a) * f;
 }
 
+// Node k's light: per channel its radiance-weighted moment (xyz) and power (w).
+struct NodeMoments {
+    r: vec4<f32>,
+    g: vec4<f32>,
+    b: vec4<f32>,
+}
+
+fn node_moments(k: u32) -> NodeMoments {
+    return NodeMoments(light[3u * k], light[3u * k + 1u], light[3u * k + 2u]);
+}
+
+// What one run adds.
+struct RunShade {
+    e: vec3<f32>,
+    spec: vec3<f32>,
+}
+
+// A run of light-tree node `node`, visibility `vis`, with ∫ L max(ω·n, 0) dω = `cos_power` per channel:
+// its share of the irradiance and, lit from its light's luminance-weighted direction, its specular
+// radiance.
+fn shade_run(node: u32, vis: f32, cos_power: vec3<f32>, n: vec3<f32>, frame: Frame, wo: vec3<f32>, specular_on: bool, prefilter: bool, f0: f32) -> RunShade {
+    var result = RunShade(vec3<f32>(0.0), vec3<f32>(0.0));
+    if all(cos_power <= vec3<f32>(0.0)) {
+        return result;
+    }
+    result.e = vis * cos_power;
+    if !specular_on {
+        return result;
+    }
+    let m = node_moments(node);
+    let lum_moment = m.r.xyz * LUMINANCE.x + m.g.xyz * LUMINANCE.y + m.b.xyz * LUMINANCE.z;
+    let lum_len = length(lum_moment);
+    if !(lum_len > 0.0) {
+        return result;
+    }
+    let wi = to_local(frame, lum_moment / lum_len);
+    if wi.z <= 0.0 {
+        return result;
+    }
+    let hs = wi + wo;
+    let hl = length(hs);
+    if !(hl > 0.0) {
+        return result;
+    }
+    let h = hs / hl;
+    let s = static_term(wi, wo, h, f0);
+    if s <= 0.0 {
+        return result;
+    }
+    var spread = 0.0;
+    if prefilter {
+        let lum_power = dot(vec3<f32>(m.r.w, m.g.w, m.b.w), LUMINANCE);
+        if lum_power > 0.0 {
+            spread = max(1.0 - lum_len / lum_power, 0.0) / (4.0 * max(dot(wo, h), 1e-3));
+        }
+    }
+    result.spec = vis * cos_power * s * table_lookup(h, spread);
+    return result;
+}
+
 @compute @workgroup_size(64)
 fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     let v = gid.x;
@@ -297,11 +365,37 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     var si = 0u;
     var idx = cut_offsets[v];
     let idx_end = cut_offsets[v + 1u];
+    // A run astride the horizon, summed one leaf per iteration: leaves [leaf, run_end) still to go.
+    var leaf = 0u;
+    var run_end = 0u;
+    var run_node = 0u;
+    var run_vis = 0.0;
+    var run_cos = vec3<f32>(0.0);
+    // One flat loop whose every iteration either takes the next run or sums one leaf of the run astride
+    // the horizon: lavapipe (llvmpipe) ends a shader's loops after 65,535 iterations in all
+    // (LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop and counted per SIMD group of 8 invocations),
+    // so nested loops, whose iterations add up over the group's union of horizon nodes, lost runs at 8°
+    // partitions (the white furnace 0.55 off). Here a group takes as many iterations as its busiest
+    // invocation: its runs plus the leaves of its nodes astride the horizon (a few thousand).
     loop {
+        if leaf < run_end {
+            let ci = leaf_cosine_integral(leaf, n);
+            if ci > 0.0 {
+                run_cos += light[leaf_light + leaf].xyz * ci;
+            }
+            leaf++;
+            if leaf == run_end {
+                let r = shade_run(run_node, run_vis, run_cos, n, frame, wo, specular_on, prefilter, f0);
+                e += r.e;
+                spec += r.spec;
+            }
+            continue;
+        }
         if pos >= leaf_count {
             break;
         }
-        while si < partition_count && render_partition[si].range.y <= pos {
+        // Runs end at partition and cut boundaries, so each step passes at most one of each.
+        if si < partition_count && render_partition[si].range.y <= pos {
             si++;
         }
         if si >= partition_count {
@@ -311,7 +405,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         var next = part.range.y;
         var vis = 0.0;
         var node = part.range.z;
-        while idx < idx_end && cut_entries[idx].y <= pos {
+        if idx < idx_end && cut_entries[idx].y <= pos {
             idx++;
         }
         if idx < idx_end {
@@ -333,7 +427,8 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         if !(vis > 0.0) {
             continue;
         }
-        // A partition node wholly below the horizon contributes nothing.
+        // A partition node wholly below the horizon contributes nothing; one wholly above is its
+        // light's moment · n; one astride it is summed leaf by leaf (the exact clip where cut).
         let axis = part.cone.xyz;
         let ccos = part.cone.w;
         let csin = sqrt(max(1.0 - ccos * ccos, 0.0));
@@ -342,64 +437,19 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         if cb < 0.0 && cb * ccos + sb * csin <= 0.0 {
             continue;
         }
-        let mr = light[3u * node];
-        let mg = light[3u * node + 1u];
-        let mb = light[3u * node + 2u];
-        var above = cb * ccos - sb * csin > 0.0 && sb * ccos + cb * csin > 0.0;
-        if !above {
-            above = true;
-            for (var i = a; i < z; i++) {
-                if !leaf_wholly_above(leaves[i], n) {
-                    above = false;
-                    break;
-                }
-            }
-        }
-        var cos_power = vec3<f32>(0.0);
-        if above {
-            cos_power = max(vec3<f32>(dot(mr.xyz, n), dot(mg.xyz, n), dot(mb.xyz, n)), vec3<f32>(0.0));
+        if cb * ccos - sb * csin > 0.0 && sb * ccos + cb * csin > 0.0 {
+            let m = node_moments(node);
+            let cos_power = max(vec3<f32>(dot(m.r.xyz, n), dot(m.g.xyz, n), dot(m.b.xyz, n)), vec3<f32>(0.0));
+            let r = shade_run(node, vis, cos_power, n, frame, wo, specular_on, prefilter, f0);
+            e += r.e;
+            spec += r.spec;
         } else {
-            for (var i = a; i < z; i++) {
-                let ci = leaf_cosine_integral(i, n);
-                if ci > 0.0 {
-                    cos_power += light[leaf_light + i].xyz * ci;
-                }
-            }
+            leaf = a;
+            run_end = z;
+            run_node = node;
+            run_vis = vis;
+            run_cos = vec3<f32>(0.0);
         }
-        if all(cos_power <= vec3<f32>(0.0)) {
-            continue;
-        }
-        e += vis * cos_power;
-        if !specular_on {
-            continue;
-        }
-        let lum_moment = mr.xyz * LUMINANCE.x + mg.xyz * LUMINANCE.y + mb.xyz * LUMINANCE.z;
-        let lum_len = length(lum_moment);
-        if !(lum_len > 0.0) {
-            continue;
-        }
-        let wi = to_local(frame, lum_moment / lum_len);
-        if wi.z <= 0.0 {
-            continue;
-        }
-        let hs = wi + wo;
-        let hl = length(hs);
-        if !(hl > 0.0) {
-            continue;
-        }
-        let h = hs / hl;
-        let s = static_term(wi, wo, h, f0);
-        if s <= 0.0 {
-            continue;
-        }
-        var spread = 0.0;
-        if prefilter {
-            let lum_power = dot(vec3<f32>(mr.w, mg.w, mb.w), LUMINANCE);
-            if lum_power > 0.0 {
-                spread = max(1.0 - lum_len / lum_power, 0.0) / (4.0 * max(dot(wo, h), 1e-3));
-            }
-        }
-        spec += vis * cos_power * s * table_lookup(h, spread);
     }
     radiance[v] = vec4<f32>(u.rho_d_f0.xyz * INV_PI * e + spec, 1.0);
 }

@@ -64,11 +64,10 @@ fn compare(ctx: &GpuContext, mesh: &str) {
     let lobes = m.lobes().unwrap();
     let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    // Vertex shading on both sides: the GPU preview shades the mesh's vertices; the partition the
-    // preview uses (gpu::MAX_PARTITION_DEG, narrower than the CPU frame's default).
-    // The CPU frame set to evaluate what the shader evaluates: every leaf the horizon cuts clipped, p read
-    // from the 2D texels.
-    let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg: glint::gpu::MAX_PARTITION_DEG, horizon_leaves: 0, texel_lookups: true, merge_runs: false, ..PrtSettings::default() };
+    // Vertex shading on both sides: the GPU preview shades the mesh's vertices; the default partition
+    // (8°, what the app's wgpu preview uses). The CPU frame set to evaluate what the shader evaluates:
+    // every leaf the horizon cuts clipped, p read from the 2D texels.
+    let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, horizon_leaves: 0, texel_lookups: true, merge_runs: false, ..PrtSettings::default() };
     let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings);
     let mut gpu = GpuPreview::new(ctx, &scene.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), settings).unwrap();
     gpu.set_material(m.rho_d, m.f0, Some(&table)).unwrap();
@@ -106,13 +105,11 @@ fn compare(ctx: &GpuContext, mesh: &str) {
             "{mesh} rotation {rotation}: {} vertices; per-vertex relative RMSE {vertex_rmse:.2e}, worst {worst:.2e} of the peak; {w}x{h} frame relative RMSE {image_rmse:.2e} over shared pixels, {only_one} of {covered} pixels covered by one renderer only; GPU frame {gpu_secs:.3} s",
             gpu_v.len()
         );
-        // 6e-7–1.5e-6 until 2026-11-24; since the bake refines cells at shadow edges, one hidden vertex of
-        // the bunny (1295, a cut of 408 nodes, facing away from the camera) comes out 5 % darker on
-        // lavapipe (RMSE 7e-4 over all vertices, 2e-6 over the frame's pixels) while every other vertex
-        // agrees to 1e-3 of the peak. Its cut is valid (tests/bake_visibility.rs checks every cut of
-        // that bake); the cause is open, like the 8° partition's (README, "The wgpu preview").
-        assert!(vertex_rmse < 1e-3, "{mesh}: per-vertex GPU vs CPU {vertex_rmse}");
-        assert!(worst < 1e-2, "{mesh}: worst vertex {worst} of the peak");
+        // f32 against f64: ~1e-6 on lavapipe. Until 2026-11-24 llvmpipe's loop budget (65,535 iterations
+        // per shader, gpu::SOFTWARE_LOOP_BUDGET) cut nested loops short: one bunny vertex with a cut of
+        // 408 nodes came out 5 % dark (worst 5e-2), and at 8° most vertices went wrong.
+        assert!(vertex_rmse < 1e-4, "{mesh}: per-vertex GPU vs CPU {vertex_rmse}");
+        assert!(worst < 1e-4, "{mesh}: worst vertex {worst} of the peak");
         // The issue asks for 1 %; lavapipe measures ~1e-5 (f32 against f64), so a bound of 0.1 % catches
         // a broken term long before it reaches the goal.
         assert!(image_rmse <= 1e-3, "{mesh}: GPU vs CPU frame {image_rmse} > 0.1 %");
@@ -151,18 +148,27 @@ fn white_furnace_and_not_ready() {
     let env = glint::env::EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
     let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
     let bake = baker.bake_all(None, &|_| {});
-    let mut gpu = GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings::default()).unwrap();
     let camera = &scene.cameras[0];
+    // Every vertex at 1 for partitions from 2° to 32° (the default is 8°; at 8° and wider, lavapipe's
+    // loop budget made it 0.55 off until 2026-11-24), on the 64-per-side set.
+    assert_eq!(baker.tree.leaf_count(), 6 * 64 * 64);
+    for partition_deg in [2.0, 8.0, 32.0] {
+        let mut gpu = GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { partition_deg, ..PrtSettings::default() }).unwrap();
+        gpu.set_light(&LightSums::new(&env, &baker.set, &baker.tree, 0.0), &baker.tree).unwrap();
+        gpu.set_material([1.0; 3], 0.04, None).unwrap();
+        let radiance = gpu.vertex_radiance(camera.eye()).unwrap();
+        let worst = radiance.iter().flatten().fold(0.0f32, |a, &b| a.max((b - 1.0).abs()));
+        assert!(worst < 1e-3, "furnace at {partition_deg}°: worst vertex off by {worst}");
+    }
+    let mut gpu = GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings::default()).unwrap();
     let err = gpu.render(camera, 16, 16).unwrap_err();
     assert!(err.to_string().contains("set_light"), "{err}");
     gpu.set_light(&LightSums::new(&env, &baker.set, &baker.tree, 0.0), &baker.tree).unwrap();
     gpu.set_material([1.0; 3], 0.04, None).unwrap();
-    let radiance = gpu.vertex_radiance(camera.eye()).unwrap();
-    let worst = radiance.iter().flatten().fold(0.0f32, |a, &b| a.max((b - 1.0).abs()));
-    assert!(worst < 1e-3, "furnace: worst vertex off by {worst}");
     let image = gpu.render(camera, 64, 64).unwrap();
     assert!(image.covered_count() > 500);
     let worst = image.pixels.iter().zip(&image.covered).filter(|(_, c)| **c).flat_map(|(p, _)| p.iter()).fold(0.0f32, |a, &b| a.max((b - 1.0).abs()));
     assert!(worst < 1e-3, "furnace: worst pixel off by {worst}");
     assert!(gpu.render(camera, 0, 16).is_err(), "an empty frame is refused");
 }
+

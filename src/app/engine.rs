@@ -77,9 +77,8 @@ impl std::str::FromStr for PreviewChoice {
 
 /// The settings the preview renderers use: the mesh's own vertices are shaded (the wgpu preview's
 /// compute pass shades vertices; the CPU frame does the same so that the two show the same picture,
-/// `tests/gpu.rs`). The wgpu preview takes the default partition (and narrows it to
-/// `gpu::MAX_PARTITION_DEG`); the CPU preview uses 16° nodes, which halve its frame time for ≤ 0.2
-/// points against Monte Carlo (`cargo test --test render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %,
+/// `tests/gpu.rs`). The wgpu preview takes the default partition (8°); the CPU preview uses 16°
+/// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %,
 /// teapot 12.83 / 12.99 %; dragon_100k at 640×480: 0.30 s / 0.15 s, `cargo bench --bench render`)
 /// and clips nodes of up to 64 leaves astride a horizon whole ([`CPU_PREVIEW_HORIZON_LEAVES`]).
 fn preview_settings(gpu: bool) -> PrtSettings {
@@ -245,14 +244,25 @@ impl Engine {
             return Err(AppError::Stage(format!("the bake delivered {} cuts for a mesh of {} vertices", cuts.vertex_count(), mesh.positions.len())));
         }
         if self.use_gpu {
-            let mut gpu = GpuPreview::new(&self.ctx, mesh, &cuts, &self.tree, tangents, preview_settings(true))?;
-            if let Some((_, light)) = &self.light {
-                gpu.set_light(light, &self.tree)?;
+            match GpuPreview::new(&self.ctx, mesh, &cuts, &self.tree, tangents, preview_settings(true)) {
+                Ok(mut gpu) => {
+                    if let Some((_, light)) = &self.light {
+                        gpu.set_light(light, &self.tree)?;
+                    }
+                    if let Some((rho_d, f0, t)) = &self.shown {
+                        gpu.set_material(*rho_d, *f0, t.as_ref())?;
+                    }
+                    self.gpu = Some(gpu);
+                }
+                // A bake this adapter cannot shade (its limits): the CPU frame draws it, and says why.
+                Err(e @ crate::gpu::GpuError::Limit { .. }) => {
+                    let threads = rayon::current_num_threads();
+                    self.use_gpu = false;
+                    self.gpu = None;
+                    self.preview_reason = format!("the CPU PRT frame on {threads} threads: {e}");
+                }
+                Err(e) => return Err(e.into()),
             }
-            if let Some((rho_d, f0, t)) = &self.shown {
-                gpu.set_material(*rho_d, *f0, t.as_ref())?;
-            }
-            self.gpu = Some(gpu);
         }
         self.cuts = Some(cuts);
         self.vertex_light = VertexLight::default();

@@ -20,7 +20,7 @@ pub mod preview;
 pub mod uniforms;
 
 pub use context::GpuContext;
-pub use preview::{GpuPreview, MAX_PARTITION_DEG};
+pub use preview::{GpuPreview, SOFTWARE_LOOP_BUDGET};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, thiserror::Error)]

@@ -71,17 +71,26 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
     [v.x, v.y, v.z, w]
 }
 
-/// The widest render partition the preview uses (degrees). With wider nodes (8°, the CPU frame's
-/// default) the shader's sums go wrong on Mesa's lavapipe — the white furnace of tests/gpu.rs comes out
-/// 0.55 off and the bunny 14 % (2026-11-22); the cause is not found yet, so the preview stays at 4°,
-/// where it equals the CPU frame at the same setting to ~1e-6.
-pub const MAX_PARTITION_DEG: f64 = 4.0;
+/// The loop iterations one shader invocation may take on llvmpipe, the software rasteriser behind
+/// Mesa's lavapipe: it ends all of a shader's loops once 65,535 iterations have run in total
+/// (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by every loop and counted per SIMD group of invocations),
+/// silently. Until 2026-11-24 that made the preview drop runs at 8° partitions (white furnace 0.55 off)
+/// and darken one bunny vertex with a 408-node cut by 5 %: `prt_shade.wgsl` now runs one flat loop.
+pub const SOFTWARE_LOOP_BUDGET: u64 = 65_535;
+
+/// An upper bound on the iterations of `prt_shade.wgsl`'s loop for any vertex: a step per run or gap
+/// (at most one per partition node and two per cut entry) plus one per leaf summed astride the horizon
+/// (at most every leaf once). Direction sets up to 64 texels per side (24,576 leaves) stay under
+/// [`SOFTWARE_LOOP_BUDGET`] whatever the partition.
+fn loop_iterations_bound(partition_nodes: usize, max_cut: usize, leaves: usize) -> u64 {
+    (partition_nodes + 2 * max_cut + leaves) as u64
+}
 
 impl GpuPreview {
-    /// Uploads the bake: `settings.partition_deg` (at most [`MAX_PARTITION_DEG`]) and
-    /// `settings.prefilter` apply; shading is per vertex.
+    /// Uploads the bake: `settings.partition_deg` and `settings.prefilter` apply; shading is per vertex.
+    /// On a software adapter, a bake whose shader loop could exceed [`SOFTWARE_LOOP_BUDGET`] (direction
+    /// sets finer than 64 texels per side) is refused with [`GpuError::Limit`] rather than drawn wrong.
     pub fn new(ctx: &GpuContext, mesh: &Mesh, cuts: &Cuts, tree: &LightTree, tangents: Option<&[Vec4]>, settings: PrtSettings) -> Result<Self, GpuError> {
-        let settings = PrtSettings { partition_deg: settings.partition_deg.min(MAX_PARTITION_DEG), ..settings };
         let device = &ctx.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let vertex_count = mesh.positions.len();
@@ -109,6 +118,13 @@ impl GpuPreview {
             cut_offsets.push(cut_entries.len() as u32);
         }
         let part = tree.partition(settings.partition_deg.to_radians().max(1e-6));
+        if ctx.info.device_type == wgpu::DeviceType::Cpu {
+            let max_cut = cut_offsets.windows(2).map(|w| (w[1] - w[0]) as usize).max().unwrap_or(0);
+            let needed = loop_iterations_bound(part.ranges.len(), max_cut, tree.leaf_count());
+            if needed > SOFTWARE_LOOP_BUDGET {
+                return Err(GpuError::Limit { what: "the shading loop on a software adapter (llvmpipe)", needed, allowed: SOFTWARE_LOOP_BUDGET });
+            }
+        }
         let partition: Vec<PartitionEntry> = part
             .ranges
             .iter()
