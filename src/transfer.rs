@@ -240,8 +240,41 @@ impl Transfer {
 struct NodeLight {
     /// Per channel Σ L ∫ ω dω (the radiance-weighted moment).
     radiant: [DVec3; 3],
-    /// Luminance of Σ Ω L (for the spread of the run's light).
-    lum_power: f64,
+    /// Where the light comes from, [`run_direction`] (`None`: no light).
+    direction: Option<(DVec3, f64)>,
+}
+
+/// Where a run's light comes from and how spread it is: the unit direction of its luminance-weighted
+/// moment and v_ω = 1 − |moment| / power (luminance; 0 for a single direction). `None` when the run
+/// has no light.
+#[inline]
+fn run_direction(radiant: &[DVec3; 3], power: [f64; 3]) -> Option<(DVec3, f64)> {
+    let lum = radiant[0] * LUMINANCE[0] + radiant[1] * LUMINANCE[1] + radiant[2] * LUMINANCE[2];
+    let lum_len = lum.length();
+    if !(lum_len > 0.0 && lum_len.is_finite()) {
+        return None;
+    }
+    let lum_power: f64 = LUMINANCE.iter().zip(power).map(|(w, p)| w * p).sum();
+    let v_omega = if lum_power > 0.0 { (1.0 - lum_len / lum_power).max(0.0) } else { 0.0 };
+    Some((lum * (1.0 / lum_len), v_omega))
+}
+
+/// A lit run of a pixel waiting for its ring-lobe histogram entry: its light's direction and spread
+/// ([`run_direction`]) and its visible cosine-weighted power per channel.
+#[derive(Debug, Clone, Copy)]
+struct LitRun {
+    direction: DVec3,
+    v_omega: f64,
+    power: [f64; 3],
+}
+
+/// A thread's scratch space, reused from pixel to pixel.
+struct Scratch {
+    /// The ring histogram (table points × 3 channels, interleaved, per filter level), all zero between
+    /// pixels.
+    hist: Vec<f64>,
+    /// The pixel's lit runs (ring lobes).
+    runs: Vec<LitRun>,
 }
 
 /// The shading partitions of ring (isotropic) lobe sets: (node half-angle in units of the lobe's σ,
@@ -359,8 +392,8 @@ impl<'a> TransferContext<'a> {
                     .iter()
                     .map(|&(a, z)| {
                         let (a, z) = (a as usize, z as usize);
-                        let power = light.power(a, z);
-                        NodeLight { radiant: light.radiant_moment(a, z), lum_power: LUMINANCE.iter().zip(power).map(|(w, p)| w * p).sum() }
+                        let radiant = light.radiant_moment(a, z);
+                        NodeLight { radiant, direction: run_direction(&radiant, light.power(a, z)) }
                     })
                     .collect()
             })
@@ -368,9 +401,7 @@ impl<'a> TransferContext<'a> {
         let bins = self.ring.as_ref().map_or(0, |r| r.levels.len() * (r.res + 1));
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            // Per thread, the ring histogram (table points × 3 channels, interleaved), all zero between
-            // pixels.
-            .map_init(|| vec![0.0f64; 3 * bins], |hist, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, hist))
+            .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: Vec::new() }, |scratch, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, scratch))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
         let mut t = Vec::with_capacity(results.len() * 3 * j_count);
@@ -384,7 +415,9 @@ impl<'a> TransferContext<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[Vec<NodeLight>], eye: DVec3, f0: f64, j_count: usize, hist: &mut [f64]) -> (PixelSample, Vec<f32>, [f64; 3]) {
+    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[Vec<NodeLight>], eye: DVec3, f0: f64, j_count: usize, scratch: &mut Scratch) -> (PixelSample, Vec<f32>, [f64; 3]) {
+        let Scratch { hist, runs } = scratch;
+        runs.clear();
         let tri = self.mesh.triangles[f.triangle as usize];
         let b = f.bary.map(|x| x as f64);
         let position: DVec3 = (0..3).map(|i| self.mesh.positions[tri[i] as usize].as_dvec3() * b[i]).sum();
@@ -445,40 +478,11 @@ impl<'a> TransferContext<'a> {
                 return;
             }
             // Where the run's light comes from: its luminance-weighted moment.
-            let lum = radiant[0] * LUMINANCE[0] + radiant[1] * LUMINANCE[1] + radiant[2] * LUMINANCE[2];
-            let lum_len = lum.length();
-            if !(lum_len > 0.0 && lum_len.is_finite()) {
-                return;
-            }
-            let dir = lum * (1.0 / lum_len);
-            if let Some(ring) = &self.ring {
-                // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame).
-                let k1 = dir.dot(normal);
-                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, dir.dot(wo_world)) else { return };
-                let s = static_term_parts(k1, wo.z, wo_h, f0);
-                if s <= 0.0 {
-                    return;
-                }
-                // The spread of the run's light, v_ω = 1 − |moment|/power (luminance), in half-vector
-                // space v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
-                let lum_power = if whole { node_light[si].lum_power } else { LUMINANCE.iter().zip(light.power(a, z)).map(|(w, p)| w * p).sum() };
-                let v_omega = if lum_power > 0.0 { (1.0 - lum_len / lum_power).max(0.0) } else { 0.0 };
-                let (l, fl) = ring.level(v_omega / (4.0 * wo_h.max(1e-3)));
-                // Σ_j g_j(x, t) w: the weight goes to the two levels and two points around (x, t).
-                let (k, fk) = ring.position(cos_h);
-                let stride = 3 * (ring.res + 1);
-                for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
-                    if wl == 0.0 {
-                        continue;
-                    }
-                    let (below, above) = (wl * (1.0 - fk), wl * fk);
-                    let b = level * stride + 3 * k;
-                    for c in 0..3 {
-                        hist[b + c] += below * power[c];
-                        hist[b + 3 + c] += above * power[c];
-                    }
-                    touched[level] = (touched[level].0.min(k), touched[level].1.max(k + 1));
-                }
+            let Some((dir, v_omega)) = (if whole { node_light[si].direction } else { run_direction(&radiant, light.power(a, z)) }) else { return };
+            if self.ring.is_some() {
+                // Ring lobes: the histogram entries after the walk, in a loop of their own (no walk in
+                // between, so the runs' arithmetic overlaps).
+                runs.push(LitRun { direction: dir, v_omega, power });
                 return;
             }
             let wi = frame.to_local(dir);
@@ -501,7 +505,32 @@ impl<'a> TransferContext<'a> {
             }
         });
         if let Some(ring) = &self.ring {
+            // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame). Each run's weight
+            // goes to the two filter levels and two table points around (x, t): Σ_j g_j(x, t) w.
             let stride = 3 * (ring.res + 1);
+            for run in runs.iter() {
+                let k1 = run.direction.dot(normal);
+                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, run.direction.dot(wo_world)) else { continue };
+                let s = static_term_parts(k1, wo.z, wo_h, f0);
+                if s <= 0.0 {
+                    continue;
+                }
+                // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
+                let (l, fl) = ring.level(run.v_omega / (4.0 * wo_h.max(1e-3)));
+                let (k, fk) = ring.position(cos_h);
+                for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
+                    if wl == 0.0 {
+                        continue;
+                    }
+                    let (below, above) = (wl * (1.0 - fk), wl * fk);
+                    let b = level * stride + 3 * k;
+                    for c in 0..3 {
+                        hist[b + c] += below * run.power[c];
+                        hist[b + 3 + c] += above * run.power[c];
+                    }
+                    touched[level] = (touched[level].0.min(k), touched[level].1.max(k + 1));
+                }
+            }
             for (level, &(k_lo, k_hi)) in touched.iter().enumerate() {
                 if k_lo > k_hi {
                     continue;
