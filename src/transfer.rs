@@ -111,6 +111,8 @@ struct RingFilter {
     levels: Vec<f64>,
     /// 1/(1 + x) of each level: the filtered lobe's peak, in which levels are blended.
     peaks: Vec<f64>,
+    /// 1 / (peaks[l] − peaks[l + 1]).
+    inv_gaps: Vec<f64>,
     /// 2λ, to turn a spread into x.
     two_lambda: f64,
     /// Rows, ((level · J) + j) · (res + 1) + k.
@@ -149,29 +151,39 @@ impl RingFilter {
                 support.push((first, last));
             }
         }
-        Self { res, levels: Self::LEVELS.to_vec(), peaks: Self::LEVELS.iter().map(|x| 1.0 / (1.0 + x)).collect(), two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
+        let peaks: Vec<f64> = Self::LEVELS.iter().map(|x| 1.0 / (1.0 + x)).collect();
+        let inv_gaps = peaks.windows(2).map(|w| 1.0 / (w[0] - w[1])).collect();
+        Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
     /// Level and the weight of the level above for a spread v (rad², half-vector space).
     #[inline(always)]
     fn level(&self, spread: f64) -> (usize, f64) {
         let x = self.two_lambda * spread;
-        let last = self.levels.len() - 1;
         if !(x > 0.0) {
             return (0, 0.0);
         }
-        if x >= self.levels[last] {
+        self.level_at_peak(1.0 / (1.0 + x))
+    }
+
+    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1] (what the transfer computes).
+    #[inline(always)]
+    fn level_at_peak(&self, p: f64) -> (usize, f64) {
+        let last = self.peaks.len() - 1;
+        if !(p < 1.0) {
+            return (0, 0.0);
+        }
+        if p <= self.peaks[last] {
             return (last - 1, 1.0);
         }
         // Most runs are narrow (x below the first step): a linear scan from the bottom.
         let mut l = 0;
-        while self.levels[l + 1] <= x {
+        while self.peaks[l + 1] >= p {
             l += 1;
         }
         // Linear in 1/(1 + x), the filtered lobe's peak, rather than in x: exact at the peak, and within
         // 0.3 % of it between levels (`filtered_ring_rows_match_a_monte_carlo_average_under_jitter`).
-        let (ua, ub) = (self.peaks[l], self.peaks[l + 1]);
-        (l, (ua - 1.0 / (1.0 + x)) / (ua - ub))
+        (l, (self.peaks[l] - p) * self.inv_gaps[l])
     }
 
     /// Table position of cos θh: point k and the weight of k + 1.

@@ -145,6 +145,9 @@ pub struct Engine {
     /// The CPU preview's per-vertex light for the current rotation and cuts (frames after a new view
     /// or a new fit evaluate only the BRDF); emptied when the light or the cuts change.
     vertex_light: VertexLight,
+    /// CPU frames drawn with the current light (and cuts): the first is shaded directly, later ones
+    /// fill and read `vertex_light`.
+    frames_with_light: u32,
     light: Option<(f64, LightSums)>,
     /// The environment prepared for light sums (kept across rotations; dropped with the environment).
     light_source: Option<crate::light::LightSource>,
@@ -196,6 +199,7 @@ impl Engine {
             preview_reason,
             gpu: None,
             vertex_light: VertexLight::default(),
+            frames_with_light: 0,
             light: None,
             light_source: None,
             lobes: None,
@@ -266,6 +270,7 @@ impl Engine {
         }
         self.cuts = Some(cuts);
         self.vertex_light = VertexLight::default();
+        self.frames_with_light = 0;
         Ok(())
     }
 
@@ -295,6 +300,7 @@ impl Engine {
             gpu.set_light(&light, &self.tree)?;
         }
         self.vertex_light = VertexLight::default();
+        self.frames_with_light = 0;
         self.light = Some((rotation, light));
         Ok(())
     }
@@ -378,7 +384,18 @@ impl Engine {
             };
             let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
             let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
-            prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &Shading { rho_d: *rho_d, f0: *f0, specular })
+            let shading = Shading { rho_d: *rho_d, f0: *f0, specular };
+            let image = if self.frames_with_light == 0 {
+                // The first frame with a new light (a rotation being dragged) is shaded directly:
+                // filling the per-vertex light cache on the way costs more than it saves on one frame
+                // (dragon_100k at 640×480: 0.10 s against 0.13 s, light sums included). The next
+                // frame with this light fills it, for the views and fits that follow.
+                prt.render(light, &camera, size[0], size[1], &shading)
+            } else {
+                prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &shading)
+            };
+            self.frames_with_light += 1;
+            image
         };
         image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
         Ok(image)
