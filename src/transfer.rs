@@ -28,7 +28,8 @@
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
+use crate::brdf::dbrdf::{denominator, static_term};
+use crate::brdf::fresnel::schlick;
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::render::prt::LUMINANCE;
@@ -156,8 +157,9 @@ impl RingFilter {
         Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
-    /// Level and the weight of the level above for a spread v (rad², half-vector space).
-    #[inline(always)]
+    /// Level and the weight of the level above for a spread v (rad², half-vector space) (the transfer
+    /// computes the peak directly: [`Self::level_at_peak`]).
+    #[cfg(test)]
     fn level(&self, spread: f64) -> (usize, f64) {
         let x = self.two_lambda * spread;
         if !(x > 0.0) {
@@ -520,15 +522,32 @@ impl<'a> TransferContext<'a> {
             // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame). Each run's weight
             // goes to the two filter levels and two table points around (x, t): Σ_j g_j(x, t) w.
             let stride = 3 * (ring.res + 1);
+            // x = 2λ v_ω / (4 wo·h) = κ v_ω / wo·h.
+            let kappa = 0.25 * ring.two_lambda;
+            let k2 = wo.z;
             for run in runs.iter() {
+                // The values of [`half_vector_cosines`], [`static_term_parts`] and [`RingFilter::level`],
+                // arranged so that no division or square root waits on another one more than it must
+                // (this loop waits on their latency): with c = wi·wo and q = |wi + wo| = √(2 + 2c),
+                // wo·h = √((1 + c)/2), cos θh = (k1 + k2)/q, and the filtered peak 1/(1 + x) =
+                // W/(W + κ v_ω) with W = max(wo·h, 10⁻³) = max(1 + c, 10⁻³ q)/q.
                 let k1 = run.direction.dot(normal);
-                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, run.direction.dot(wo_world)) else { continue };
-                let s = static_term_parts(k1, wo.z, wo_h, f0);
-                if s <= 0.0 {
+                let c = run.direction.dot(wo_world);
+                let len2 = 2.0 + 2.0 * c;
+                if !(k1 > 0.0 && len2 > 1e-24) {
                     continue;
                 }
-                // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
-                let (l, fl) = ring.level(run.v_omega / (4.0 * wo_h.max(1e-3)));
+                let q = len2.sqrt();
+                let wo_h = (0.5 * (1.0 + c)).sqrt();
+                let inv_d4 = 1.0 / (4.0 * denominator(k1, k2));
+                let cos_h = ((k1 + k2) / q).min(1.0);
+                let w = (1.0 + c).max(1e-3 * q);
+                let peak = w / (w + kappa * run.v_omega * q);
+                let s = schlick(f0, wo_h) * inv_d4;
+                if !(s > 0.0) {
+                    continue;
+                }
+                let (l, fl) = ring.level_at_peak(peak);
                 let (k, fk) = ring.position(cos_h);
                 for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
                     if wl == 0.0 {
