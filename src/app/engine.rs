@@ -27,6 +27,7 @@ use crate::fit::run::camera_for;
 use crate::fit::strokes::{ViewSpec, targets};
 use crate::gpu::{GpuContext, GpuPreview};
 use crate::light::LightSums;
+use crate::render::prt::ShadingMesh;
 use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, VertexLight, table};
 use crate::scene::{Camera, Scene};
 use crate::sphere::{DirectionSet, LightTree, LobeSet, srbf};
@@ -148,6 +149,9 @@ pub struct Engine {
     /// CPU frames drawn with the current light (and cuts): the first is shaded directly, later ones
     /// fill and read `vertex_light`.
     frames_with_light: u32,
+    /// The CPU preview's shading mesh of the last view (camera and size): kept while only the light or
+    /// the material changes; dropped with the cuts.
+    view_mesh: Option<(Camera, [u32; 2], ShadingMesh)>,
     light: Option<(f64, LightSums)>,
     /// The environment prepared for light sums (kept across rotations; dropped with the environment).
     light_source: Option<crate::light::LightSource>,
@@ -200,6 +204,7 @@ impl Engine {
             gpu: None,
             vertex_light: VertexLight::default(),
             frames_with_light: 0,
+            view_mesh: None,
             light: None,
             light_source: None,
             lobes: None,
@@ -271,6 +276,7 @@ impl Engine {
         self.cuts = Some(cuts);
         self.vertex_light = VertexLight::default();
         self.frames_with_light = 0;
+        self.view_mesh = None;
         Ok(())
     }
 
@@ -385,14 +391,18 @@ impl Engine {
             let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
             let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
             let shading = Shading { rho_d: *rho_d, f0: *f0, specular };
+            if !self.view_mesh.as_ref().is_some_and(|(c, s, _)| *c == camera && *s == size) {
+                self.view_mesh = Some((camera.clone(), size, prt.shading_mesh(&camera, size[0], size[1])));
+            }
+            let sm = self.view_mesh.as_ref().map(|(_, _, sm)| sm).ok_or(AppError::NotReady("no shading mesh"))?;
             let image = if self.frames_with_light == 0 {
                 // The first frame with a new light (a rotation being dragged) is shaded directly:
                 // filling the per-vertex light cache on the way costs more than it saves on one frame
                 // (dragon_100k at 640×480: 0.10 s against 0.13 s, light sums included). The next
                 // frame with this light fills it, for the views and fits that follow.
-                prt.render(light, &camera, size[0], size[1], &shading)
+                prt.render_mesh(sm, light, &camera, size[0], size[1], &shading)
             } else {
-                prt.render_cached(&mut self.vertex_light, light, &camera, size[0], size[1], &shading)
+                prt.render_cached_mesh(&mut self.vertex_light, sm, light, &camera, size[0], size[1], &shading)
             };
             self.frames_with_light += 1;
             image

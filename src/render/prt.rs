@@ -652,7 +652,13 @@ impl<'a> Prt<'a> {
             // Every point is inside a triangle: nothing to cache.
             return self.render(light, camera, width, height, shading);
         }
-        let sm = self.shading_mesh(camera, width, height);
+        self.render_cached_mesh(cache, &self.shading_mesh(camera, width, height), light, camera, width, height, shading)
+    }
+
+    /// [`Prt::render_cached`] over a shading mesh made before for this view and size
+    /// ([`Prt::shading_mesh`]; a caller whose view has not changed keeps it). Not for `per_pixel`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_cached_mesh(&self, cache: &mut VertexLight, sm: &ShadingMesh, light: &LightSums, camera: &Camera, width: u32, height: u32, shading: &Shading) -> Image {
         self.fill_vertex_light(cache, &sm.points, light);
         let eye = camera.eye().as_dvec3();
         let cache = &*cache;
@@ -662,7 +668,7 @@ impl<'a> Prt<'a> {
             .par_iter()
             .map(|p| self.shade_cached(p, cache, eye, shading).unwrap_or_else(|| self.shade_point_with(p, light, Some(&node_light), eye, shading)))
             .collect();
-        interpolate(&sm, &radiance, camera, width, height)
+        interpolate(sm, &radiance, camera, width, height)
     }
 
     /// Radiance of the given shading points (in parallel), in order.
@@ -708,9 +714,15 @@ impl<'a> Prt<'a> {
             }
             return image;
         }
-        let sm = self.shading_mesh(camera, width, height);
+        self.render_mesh(&self.shading_mesh(camera, width, height), light, camera, width, height, shading)
+    }
+
+    /// [`Prt::render`] over a shading mesh made before for this view and size ([`Prt::shading_mesh`]):
+    /// a new light changes no shading point, so a caller whose view has not changed keeps the mesh
+    /// (its rasterisation is ~10 % of the dragon's frame at 640×480). Not for `per_pixel`.
+    pub fn render_mesh(&self, sm: &ShadingMesh, light: &LightSums, camera: &Camera, width: u32, height: u32, shading: &Shading) -> Image {
         let radiance = self.shade_points(&sm.points, light, camera.eye().as_dvec3(), shading);
-        interpolate(&sm, &radiance, camera, width, height)
+        interpolate(sm, &radiance, camera, width, height)
     }
 }
 
