@@ -28,11 +28,10 @@
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::{denominator, static_term};
-use crate::brdf::fresnel::schlick;
+use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
-use crate::render::prt::LUMINANCE;
+use crate::render::prt::{LUMINANCE, luminance, spread};
 use crate::scene::{Camera, Mesh};
 use crate::sphere::light_tree::{COARSE_HORIZON_LEAVES, Partition, PartitionCone};
 use crate::sphere::{Frame, LightTree, LobeSet, hemi_oct, srbf};
@@ -157,9 +156,8 @@ impl RingFilter {
         Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
-    /// Level and the weight of the level above for a spread v (rad², half-vector space) (the transfer
-    /// computes the peak directly: [`Self::level_at_peak`]).
-    #[cfg(test)]
+    /// Level and the weight of the level above for a spread v (rad², half-vector space).
+    #[inline(always)]
     fn level(&self, spread: f64) -> (usize, f64) {
         let x = self.two_lambda * spread;
         if !(x > 0.0) {
@@ -168,7 +166,7 @@ impl RingFilter {
         self.level_at_peak(1.0 / (1.0 + x))
     }
 
-    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1] (what the transfer computes).
+    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1].
     #[inline(always)]
     fn level_at_peak(&self, p: f64) -> (usize, f64) {
         let last = self.peaks.len() - 1;
@@ -268,9 +266,7 @@ fn run_direction(radiant: &[DVec3; 3], power: [f64; 3]) -> Option<(DVec3, f64)> 
     if !(lum_len > 0.0 && lum_len.is_finite()) {
         return None;
     }
-    let lum_power: f64 = LUMINANCE.iter().zip(power).map(|(w, p)| w * p).sum();
-    let v_omega = if lum_power > 0.0 { (1.0 - lum_len / lum_power).max(0.0) } else { 0.0 };
-    Some((lum * (1.0 / lum_len), v_omega))
+    Some((lum * (1.0 / lum_len), spread(lum, luminance(power))))
 }
 
 /// A lit run of a pixel waiting for its ring-lobe histogram entry: its light's direction and spread
@@ -522,32 +518,15 @@ impl<'a> TransferContext<'a> {
             // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame). Each run's weight
             // goes to the two filter levels and two table points around (x, t): Σ_j g_j(x, t) w.
             let stride = 3 * (ring.res + 1);
-            // x = 2λ v_ω / (4 wo·h) = κ v_ω / wo·h.
-            let kappa = 0.25 * ring.two_lambda;
-            let k2 = wo.z;
             for run in runs.iter() {
-                // The values of [`half_vector_cosines`], [`static_term_parts`] and [`RingFilter::level`],
-                // arranged so that no division or square root waits on another one more than it must
-                // (this loop waits on their latency): with c = wi·wo and q = |wi + wo| = √(2 + 2c),
-                // wo·h = √((1 + c)/2), cos θh = (k1 + k2)/q, and the filtered peak 1/(1 + x) =
-                // W/(W + κ v_ω) with W = max(wo·h, 10⁻³) = max(1 + c, 10⁻³ q)/q.
                 let k1 = run.direction.dot(normal);
-                let c = run.direction.dot(wo_world);
-                let len2 = 2.0 + 2.0 * c;
-                if !(k1 > 0.0 && len2 > 1e-24) {
+                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, run.direction.dot(wo_world)) else { continue };
+                let s = static_term_parts(k1, wo.z, wo_h, f0);
+                if s <= 0.0 {
                     continue;
                 }
-                let q = len2.sqrt();
-                let wo_h = (0.5 * (1.0 + c)).sqrt();
-                let inv_d4 = 1.0 / (4.0 * denominator(k1, k2));
-                let cos_h = ((k1 + k2) / q).min(1.0);
-                let w = (1.0 + c).max(1e-3 * q);
-                let peak = w / (w + kappa * run.v_omega * q);
-                let s = schlick(f0, wo_h) * inv_d4;
-                if !(s > 0.0) {
-                    continue;
-                }
-                let (l, fl) = ring.level_at_peak(peak);
+                // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
+                let (l, fl) = ring.level(run.v_omega / (4.0 * wo_h.max(1e-3)));
                 let (k, fk) = ring.position(cos_h);
                 for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
                     if wl == 0.0 {

@@ -12,6 +12,7 @@ fn scratch() -> &'static PathBuf {
     DIR.get_or_init(|| {
         let dir = std::env::temp_dir().join(format!("glint-fuzz-gltf-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
+        // The harness's own scratch folder, not the code under test: without it nothing can be fuzzed.
         std::fs::create_dir_all(&dir).expect("scratch folder");
         dir
     })
@@ -21,6 +22,7 @@ fuzz_target!(|data: &[u8]| {
     // The content decides the container, not the name; alternate the extension anyway.
     let name = if data.starts_with(b"glTF") { "scene.glb" } else { "scene.gltf" };
     let path = scratch().join(name);
+    // Writing the input to the harness's scratch folder (not the code under test) must work.
     std::fs::write(&path, data).expect("write the input");
     if let Ok(scene) = glint::scene::import(&path) {
         // What every later stage relies on: indices in range, finite unit normals, finite positions.

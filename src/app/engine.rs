@@ -79,8 +79,8 @@ impl std::str::FromStr for PreviewChoice {
 /// The settings the preview renderers use: the mesh's own vertices are shaded (the wgpu preview's
 /// compute pass shades vertices; the CPU frame does the same so that the two show the same picture,
 /// `tests/gpu.rs`). The wgpu preview takes the default partition (8°); the CPU preview uses 16°
-/// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %,
-/// teapot 12.83 / 12.99 %; dragon_100k at 640×480: 0.30 s / 0.15 s, `cargo bench --bench render`)
+/// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test render
+/// diagnose`, PDS=8,16: bunny 3.65 / 3.68 %, teapot 12.83 / 12.99 %; dragon_100k at 640×480: 0.30 s / 0.15 s, `cargo bench --bench render`)
 /// and clips nodes of up to 64 leaves astride a horizon whole ([`CPU_PREVIEW_HORIZON_LEAVES`]).
 fn preview_settings(gpu: bool) -> PrtSettings {
     if gpu {
@@ -392,9 +392,9 @@ impl Engine {
             let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
             let shading = Shading { rho_d: *rho_d, f0: *f0, specular };
             if !self.view_mesh.as_ref().is_some_and(|(c, s, _)| *c == camera && *s == size) {
-                self.view_mesh = Some((camera.clone(), size, prt.shading_mesh(&camera, size[0], size[1])));
+                self.view_mesh = None;
             }
-            let sm = self.view_mesh.as_ref().map(|(_, _, sm)| sm).ok_or(AppError::NotReady("no shading mesh"))?;
+            let (_, _, sm) = self.view_mesh.get_or_insert_with(|| (camera.clone(), size, prt.shading_mesh(&camera, size[0], size[1])));
             let image = if self.frames_with_light == 0 {
                 // The first frame with a new light (a rotation being dragged) is shaded directly:
                 // filling the per-vertex light cache on the way costs more than it saves on one frame

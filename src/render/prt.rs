@@ -108,13 +108,13 @@ struct NodeLight {
 
 /// The luminance of an RGB triple.
 #[inline]
-fn luminance(rgb: [f64; 3]) -> f64 {
+pub(crate) fn luminance(rgb: [f64; 3]) -> f64 {
     rgb[0] * LUMINANCE[0] + rgb[1] * LUMINANCE[1] + rgb[2] * LUMINANCE[2]
 }
 
 /// A light's spread v_ω = 1 − |moment| / power (0 for no power): 0 for a point, → 1 for an even spread.
 #[inline]
-fn spread(moment: DVec3, power: f64) -> f64 {
+pub(crate) fn spread(moment: DVec3, power: f64) -> f64 {
     if power > 0.0 { (1.0 - moment.length() / power).max(0.0) } else { 0.0 }
 }
 
@@ -733,7 +733,7 @@ pub fn interpolate(sm: &ShadingMesh, radiance: &[[f64; 3]], camera: &Camera, wid
     let mut image = Image::new(width, height);
     let rasterized;
     // The shading mesh's own fragments when it has them for this size (it is made for one view).
-    let fragments = if sm.subdivision == 1 && !sm.fragments.is_empty() && sm.fragment_size == [width, height] {
+    let fragments = if !sm.fragments.is_empty() && sm.fragment_size == [width, height] {
         &sm.fragments
     } else {
         rasterized = rasterize_triangles(&sm.positions, &sm.triangles, camera, width, height);
