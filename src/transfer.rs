@@ -28,7 +28,7 @@
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
+use crate::brdf::dbrdf::{static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::render::prt::{LUMINANCE, luminance, spread};
@@ -110,9 +110,9 @@ struct RingFilter {
     /// x = 2λv of each level, increasing from 0.
     levels: Vec<f64>,
     /// 1/(1 + x) of each level: the filtered lobe's peak, in which levels are blended.
-    peaks: Vec<f64>,
+    peaks: [f64; FILTER_LEVELS],
     /// 1 / (peaks[l] − peaks[l + 1]).
-    inv_gaps: Vec<f64>,
+    inv_gaps: [f64; FILTER_LEVELS - 1],
     /// 2λ, to turn a spread into x.
     two_lambda: f64,
     /// Rows, ((level · J) + j) · (res + 1) + k.
@@ -127,7 +127,7 @@ impl RingFilter {
     /// linear interpolation is within 2e-4 of its peak.
     const RES: usize = 512;
     /// Levels of x = 2λv: spreads up to x = 2 (λ' = λ/3) are filtered, larger ones clamp to it.
-    const LEVELS: [f64; 6] = [0.0, 0.0625, 0.1875, 0.4375, 0.9375, 2.0];
+    const LEVELS: [f64; FILTER_LEVELS] = [0.0, 0.0625, 0.1875, 0.4375, 0.9375, 2.0];
 
     fn new(lobes: &LobeSet) -> Self {
         let res = Self::RES;
@@ -151,46 +151,46 @@ impl RingFilter {
                 support.push((first, last));
             }
         }
-        let peaks: Vec<f64> = Self::LEVELS.iter().map(|x| 1.0 / (1.0 + x)).collect();
-        let inv_gaps = peaks.windows(2).map(|w| 1.0 / (w[0] - w[1])).collect();
+        let peaks = Self::LEVELS.map(|x| 1.0 / (1.0 + x));
+        let inv_gaps = std::array::from_fn(|l| 1.0 / (peaks[l] - peaks[l + 1]));
         Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
     /// Level and the weight of the level above for a spread v (rad², half-vector space).
     #[inline(always)]
     fn level(&self, spread: f64) -> (usize, f64) {
-        let x = self.two_lambda * spread;
-        if !(x > 0.0) {
-            return (0, 0.0);
-        }
-        self.level_at_peak(1.0 / (1.0 + x))
+        // x = 0 gives p = 1 (level 0); x < 0 or NaN too.
+        self.level_at_peak(1.0 / (1.0 + self.two_lambda * spread))
     }
 
-    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1].
+    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1]. Without branches on p (a
+    /// chain of selects over the few levels), so that [`ring_entries`] vectorises.
     #[inline(always)]
     fn level_at_peak(&self, p: f64) -> (usize, f64) {
-        let last = self.peaks.len() - 1;
-        if !(p < 1.0) {
-            return (0, 0.0);
-        }
-        if p <= self.peaks[last] {
-            return (last - 1, 1.0);
-        }
-        // Most runs are narrow (x below the first step): a linear scan from the bottom.
-        let mut l = 0;
-        while self.peaks[l + 1] >= p {
-            l += 1;
+        let last = FILTER_LEVELS - 1;
+        // The highest level whose peak is ≥ p (peaks fall with the level; levels 1..last − 1).
+        let (mut l, mut peak, mut inv_gap) = (0usize, self.peaks[0], self.inv_gaps[0]);
+        for i in 1..last {
+            let above = self.peaks[i] >= p;
+            l = if above { i } else { l };
+            peak = if above { self.peaks[i] } else { peak };
+            inv_gap = if above { self.inv_gaps[i] } else { inv_gap };
         }
         // Linear in 1/(1 + x), the filtered lobe's peak, rather than in x: exact at the peak, and within
         // 0.3 % of it between levels (`filtered_ring_rows_match_a_monte_carlo_average_under_jitter`).
-        (l, (self.peaks[l] - p) * self.inv_gaps[l])
+        let fl = (peak - p) * inv_gap;
+        // No spread (p ≥ 1, or NaN): level 0 alone; beyond the last level: clamped to it.
+        let wide = p <= self.peaks[last];
+        let narrow = !(p < 1.0);
+        (if wide { last - 1 } else if narrow { 0 } else { l }, if wide { 1.0 } else if narrow { 0.0 } else { fl })
     }
 
     /// Table position of cos θh: point k and the weight of k + 1.
     #[inline]
     fn position(&self, cos_h: f64) -> (usize, f64) {
         let x = (1.0 - cos_h.clamp(0.0, 1.0)).sqrt() * self.res as f64;
-        let k = (x as usize).min(self.res - 1);
+        // Through i32 (x ∈ [0, res]), which vector units convert directly.
+        let k = ((x as i32).max(0) as usize).min(self.res - 1);
         (k, x - k as f64)
     }
 
@@ -269,13 +269,34 @@ fn run_direction(radiant: &[DVec3; 3], power: [f64; 3]) -> Option<(DVec3, f64)> 
     Some((lum * (1.0 / lum_len), spread(lum, luminance(power))))
 }
 
-/// A lit run of a pixel waiting for its ring-lobe histogram entry: its light's direction and spread
+/// A pixel's lit runs waiting for their ring-lobe histogram entries, by component (so that
+/// [`ring_entries`] loads several runs at once): each run's light direction and spread
 /// ([`run_direction`]) and its visible cosine-weighted power per channel.
-#[derive(Debug, Clone, Copy)]
-struct LitRun {
-    direction: DVec3,
-    v_omega: f64,
-    power: [f64; 3],
+#[derive(Debug, Default)]
+struct LitRuns {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    v_omega: Vec<f64>,
+    power: Vec<[f64; 3]>,
+}
+
+impl LitRuns {
+    fn clear(&mut self) {
+        for v in [&mut self.x, &mut self.y, &mut self.z, &mut self.v_omega] {
+            v.clear();
+        }
+        self.power.clear();
+    }
+
+    #[inline]
+    fn push(&mut self, direction: DVec3, v_omega: f64, power: [f64; 3]) {
+        self.x.push(direction.x);
+        self.y.push(direction.y);
+        self.z.push(direction.z);
+        self.v_omega.push(v_omega);
+        self.power.push(power);
+    }
 }
 
 /// A thread's scratch space, reused from pixel to pixel.
@@ -284,7 +305,9 @@ struct Scratch {
     /// pixels.
     hist: Vec<f64>,
     /// The pixel's lit runs (ring lobes).
-    runs: Vec<LitRun>,
+    runs: LitRuns,
+    /// Their histogram entries.
+    entries: RingEntries,
 }
 
 /// The shading partitions of ring (isotropic) lobe sets: (node half-angle in units of the lobe's σ,
@@ -307,6 +330,77 @@ const SHADING_TIERS: [(f64, f64); 4] = [(1.0, 0.6), (0.75, 0.3), (0.5, 0.15), (0
 /// well (never finer than σ/4, the single partition before the tiers: λ = 1 in `tests/hard_cases.rs`
 /// is 8.7 % off with uncapped tiers from 1.5σ, 0.34 % with this cap). The paper's σ = π/40 = 0.079 is unaffected.
 const MAX_SHADING_ANGLE: f64 = 0.12;
+
+/// Filter levels of [`RingFilter`].
+const FILTER_LEVELS: usize = 6;
+
+/// The lit runs' places in the ring histogram ([`ring_entries`]), by component: per run the lower
+/// filter level with the weight s·(1 − f) of it and s·f of the level above, and the lower table point
+/// k with the weight of k + 1. Weights of 0: the run adds nothing (no half-vector, or no specular term).
+#[derive(Debug, Default)]
+struct RingEntries {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    fk: Vec<f64>,
+    level: Vec<u32>,
+    k: Vec<u32>,
+}
+
+/// The ring-histogram entries of a pixel's lit runs: the half-vector's cosines (as
+/// `half_vector_cosines`), the static term, the filter level of the run's spread and the table
+/// position, with no branch on the data (invalid runs get weights of 0), so that the loop runs
+/// several runs per instruction. The scatter into the histogram stays a loop of its own.
+fn ring_entries(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world: DVec3, wo_z: f64, f0: f64, out: &mut RingEntries) {
+    let n = runs.x.len();
+    for v in [&mut out.lower, &mut out.upper, &mut out.fk] {
+        v.clear();
+        v.resize(n, 0.0);
+    }
+    for v in [&mut out.level, &mut out.k] {
+        v.clear();
+        v.resize(n, 0);
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above); the function is the portable loop compiled
+        // for it, with the same IEEE arithmetic (no fused operations are formed).
+        unsafe { ring_entries_avx2(ring, runs, normal, wo_world, wo_z, f0, out) };
+        return;
+    }
+    ring_entries_loop(ring, runs, normal, wo_world, wo_z, f0, out);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn ring_entries_avx2(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world: DVec3, wo_z: f64, f0: f64, out: &mut RingEntries) {
+    ring_entries_loop(ring, runs, normal, wo_world, wo_z, f0, out);
+}
+
+#[inline(always)]
+fn ring_entries_loop(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world: DVec3, wo_z: f64, f0: f64, out: &mut RingEntries) {
+    let n = runs.x.len();
+    let (x, y, z, v_omega) = (&runs.x[..n], &runs.y[..n], &runs.z[..n], &runs.v_omega[..n]);
+    let (lower, upper, fks) = (&mut out.lower[..n], &mut out.upper[..n], &mut out.fk[..n]);
+    let (levels, ks) = (&mut out.level[..n], &mut out.k[..n]);
+    for i in 0..n {
+        let k1 = x[i] * normal.x + y[i] * normal.y + z[i] * normal.z;
+        let c = x[i] * wo_world.x + y[i] * wo_world.y + z[i] * wo_world.z;
+        let len2 = 2.0 + 2.0 * c;
+        let valid = k1 > 0.0 && len2 > 1e-24;
+        let inv = 1.0 / len2.max(1e-24).sqrt();
+        let (wo_h, cos_h) = ((1.0 + c) * inv, ((k1 + wo_z) * inv).min(1.0));
+        let s = static_term_parts(k1, wo_z, wo_h, f0);
+        let s = if valid && s > 0.0 { s } else { 0.0 };
+        // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
+        let (l, fl) = ring.level(v_omega[i] / (4.0 * wo_h.max(1e-3)));
+        let (k, fk) = ring.position(cos_h);
+        lower[i] = s * (1.0 - fl);
+        upper[i] = s * fl;
+        fks[i] = fk;
+        levels[i] = l as u32;
+        ks[i] = k as u32;
+    }
+}
 
 /// A partition of the sphere into shading nodes.
 struct ShadingPartition {
@@ -411,7 +505,7 @@ impl<'a> TransferContext<'a> {
         let bins = self.ring.as_ref().map_or(0, |r| r.levels.len() * (r.res + 1));
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: Vec::new() }, |scratch, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, scratch))
+            .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: LitRuns::default(), entries: RingEntries::default() }, |scratch, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, scratch))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
         let mut t = Vec::with_capacity(results.len() * 3 * j_count);
@@ -426,7 +520,7 @@ impl<'a> TransferContext<'a> {
 
     #[allow(clippy::too_many_arguments)]
     fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[Vec<NodeLight>], eye: DVec3, f0: f64, j_count: usize, scratch: &mut Scratch) -> (PixelSample, Vec<f32>, [f64; 3]) {
-        let Scratch { hist, runs } = scratch;
+        let Scratch { hist, runs, entries } = scratch;
         runs.clear();
         let tri = self.mesh.triangles[f.triangle as usize];
         let b = f.bary.map(|x| x as f64);
@@ -492,7 +586,7 @@ impl<'a> TransferContext<'a> {
             if self.ring.is_some() {
                 // Ring lobes: the histogram entries after the walk, in a loop of their own (no walk in
                 // between, so the runs' arithmetic overlaps).
-                runs.push(LitRun { direction: dir, v_omega, power });
+                runs.push(dir, v_omega, power);
                 return;
             }
             let wi = frame.to_local(dir);
@@ -518,25 +612,18 @@ impl<'a> TransferContext<'a> {
             // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame). Each run's weight
             // goes to the two filter levels and two table points around (x, t): Σ_j g_j(x, t) w.
             let stride = 3 * (ring.res + 1);
-            for run in runs.iter() {
-                let k1 = run.direction.dot(normal);
-                let Some((wo_h, cos_h)) = half_vector_cosines(k1, wo.z, run.direction.dot(wo_world)) else { continue };
-                let s = static_term_parts(k1, wo.z, wo_h, f0);
-                if s <= 0.0 {
-                    continue;
-                }
-                // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
-                let (l, fl) = ring.level(run.v_omega / (4.0 * wo_h.max(1e-3)));
-                let (k, fk) = ring.position(cos_h);
-                for (level, wl) in [(l, s * (1.0 - fl)), (l + 1, s * fl)] {
+            ring_entries(ring, runs, normal, wo_world, wo.z, f0, entries);
+            for (i, power) in runs.power.iter().enumerate() {
+                let (l, k, fk) = (entries.level[i] as usize, entries.k[i] as usize, entries.fk[i]);
+                for (level, wl) in [(l, entries.lower[i]), (l + 1, entries.upper[i])] {
                     if wl == 0.0 {
                         continue;
                     }
                     let (below, above) = (wl * (1.0 - fk), wl * fk);
                     let b = level * stride + 3 * k;
                     for c in 0..3 {
-                        hist[b + c] += below * run.power[c];
-                        hist[b + 3 + c] += above * run.power[c];
+                        hist[b + c] += below * power[c];
+                        hist[b + 3 + c] += above * power[c];
                     }
                     touched[level] = (touched[level].0.min(k), touched[level].1.max(k + 1));
                 }

@@ -32,17 +32,18 @@ impl Cuts {
 
 /// Calls `f(a, z, vis, partition_index)` for every run of leaves [a, z) with vis > 0, in leaf order.
 /// `lists` and `weights` pair up (at most three are used); `partition` covers [0, leaves) in order.
+///
+/// Two levels: the cuts are merged into segments on which every cut node is constant (cut nodes are
+/// much wider than partition nodes), and each segment with vis > 0 is cut at the partition's
+/// boundaries in a loop of its own; gaps (vis = 0) are skipped by a binary search of the partition.
 #[inline]
 pub fn for_each_run(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)], leaves: u32, mut f: impl FnMut(usize, usize, f64, usize)) {
     let n = lists.len().min(weights.len()).min(3);
     let mut idx = [0usize; 3];
     let (mut pos, mut si) = (0u32, 0usize);
-    while pos < leaves {
-        while si < partition.len() && partition[si].1 <= pos {
-            si += 1;
-        }
-        let Some(&(_, part_end)) = partition.get(si) else { break };
-        let mut next = part_end;
+    let end = leaves.min(partition.last().map_or(0, |p| p.1));
+    while pos < end {
+        let mut next = end;
         let mut vis = 0.0f64;
         for c in 0..n {
             let list = lists[c];
@@ -58,11 +59,27 @@ pub fn for_each_run(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)]
                 }
             }
         }
-        let (a, z) = (pos as usize, next as usize);
-        pos = next;
         if vis > 0.0 {
-            f(a, z, vis, si);
+            // The partition node holding pos: usually the next one, else a search.
+            if partition[si].1 <= pos {
+                si += 1;
+                if partition[si].1 <= pos {
+                    si += partition[si..].partition_point(|p| p.1 <= pos);
+                }
+            }
+            let mut a = pos;
+            loop {
+                let part_end = partition[si].1;
+                if part_end >= next {
+                    f(a as usize, next as usize, vis, si);
+                    break;
+                }
+                f(a as usize, part_end as usize, vis, si);
+                a = part_end;
+                si += 1;
+            }
         }
+        pos = next;
     }
 }
 
