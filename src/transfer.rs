@@ -33,7 +33,7 @@ use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::render::prt::{LUMINANCE, luminance, spread};
 use crate::scene::{Camera, Mesh};
-use crate::sphere::light_tree::{COARSE_HORIZON_LEAVES, Partition, PartitionCone};
+use crate::sphere::light_tree::{COARSE_HORIZON_LEAVES, Partition, PartitionCone, disc_clipped_cosine};
 use crate::sphere::{Frame, LightTree, LobeSet, hemi_oct, srbf};
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
@@ -269,6 +269,12 @@ fn run_direction(radiant: &[DVec3; 3], power: [f64; 3]) -> Option<(DVec3, f64)> 
     Some((lum * (1.0 / lum_len), spread(lum, luminance(power))))
 }
 
+/// The light of every shading partition's nodes and horizon pieces under the current rotation.
+struct PartitionLights<'a> {
+    nodes: &'a [Vec<NodeLight>],
+    pieces: &'a [Vec<PieceLight>],
+}
+
 /// A pixel's lit runs waiting for their ring-lobe histogram entries, by component (so that
 /// [`ring_entries`] loads several runs at once): each run's light direction and spread
 /// ([`run_direction`]) and its visible cosine-weighted power per channel.
@@ -414,13 +420,77 @@ struct ShadingPartition {
     nodes: Vec<u32>,
     /// Per node, its corner cone (copied from the tree so that runs read them in order).
     cones: Vec<PartitionCone>,
+    /// Per node, the range of `pieces` that tile it (`pieces[piece_offsets[i]..piece_offsets[i + 1]]`).
+    piece_offsets: Vec<u32>,
+    /// The largest tree nodes of at most `coarse_leaves` leaves under each node, in leaf order, with
+    /// what clipping them at a horizon needs ([`HorizonPiece`]).
+    pieces: Vec<HorizonPiece>,
+}
+
+/// A tree node of at most `coarse_leaves` leaves that a shading node astride a horizon is split into:
+/// wholly above (its radiant moment · n, exact), wholly below (nothing), or astride (its mean
+/// radiance times [`disc_clipped_cosine`]) — what [`LightSums::clipped_cosine_power`]'s walk down the
+/// tree computes, read from a flat list instead of the tree and the prefix sums.
+#[derive(Debug, Clone, Copy)]
+struct HorizonPiece {
+    cone: PartitionCone,
+    solid_angle: f64,
+    moment: DVec3,
+    /// Leaf range [first, end).
+    first: u32,
+    end: u32,
+}
+
+/// A [`HorizonPiece`]'s light under the current rotation.
+#[derive(Debug, Clone, Copy)]
+struct PieceLight {
+    /// Per channel Σ L ∫ ω dω.
+    radiant: [DVec3; 3],
+    /// Per channel its mean radiance (power / solid angle).
+    radiance: [f64; 3],
 }
 
 impl ShadingPartition {
-    fn new(tree: &LightTree, angle: f64, min_wo_z: f64) -> Self {
+    fn new(tree: &LightTree, angle: f64, min_wo_z: f64, coarse_leaves: u32) -> Self {
         let Partition { ranges, nodes, .. } = tree.partition(angle.max(1e-6));
         let cones = nodes.iter().map(|&k| *tree.corner_cone(k as usize)).collect();
-        Self { angle, min_wo_z, ranges, nodes, cones }
+        let mut piece_offsets = vec![0u32];
+        let mut pieces = Vec::new();
+        for &k in &nodes {
+            for p in crate::bake::decisions::nodes_of_at_most(tree, coarse_leaves, k as usize) {
+                let node = &tree.nodes()[p];
+                pieces.push(HorizonPiece { cone: *tree.corner_cone(p), solid_angle: node.solid_angle, moment: node.moment, first: node.first, end: node.first + node.count });
+            }
+            piece_offsets.push(pieces.len() as u32);
+        }
+        Self { angle, min_wo_z, ranges, nodes, cones, piece_offsets, pieces }
+    }
+
+    /// ∫ L max(ω·n, 0) dω over node `si` (whole), per channel, split at the horizon of n into its
+    /// pieces; `light` holds the pieces' light, index for index.
+    #[inline]
+    fn clipped_cosine_power(&self, si: usize, light: &[PieceLight], n: DVec3) -> [f64; 3] {
+        let range = self.piece_offsets[si] as usize..self.piece_offsets[si + 1] as usize;
+        let mut cos_power = [0.0f64; 3];
+        for (piece, pl) in self.pieces[range.clone()].iter().zip(&light[range]) {
+            let cone = &piece.cone;
+            let cb = cone.axis.dot(n);
+            if cone.cos > 0.0 && cb > cone.sin {
+                for c in 0..3 {
+                    cos_power[c] += pl.radiant[c].dot(n).max(0.0);
+                }
+            } else if cone.cos > 0.0 && cb < -cone.sin {
+                continue;
+            } else {
+                let clipped = disc_clipped_cosine(piece.solid_angle, piece.moment.dot(n));
+                if clipped > 0.0 {
+                    for c in 0..3 {
+                        cos_power[c] += pl.radiance[c] * clipped;
+                    }
+                }
+            }
+        }
+        cos_power
     }
 }
 
@@ -450,15 +520,16 @@ impl<'a> TransferContext<'a> {
     pub fn new(mesh: &'a Mesh, cuts: &'a Cuts, tree: &'a LightTree, lobes: &'a LobeSet, tangents: Option<&'a [Vec4]>, shading_angle: Option<f64>) -> Self {
         let sigma = srbf::sigma_from_lambda(lobes.lambda()).unwrap_or(0.08);
         let ring = lobes.layout().is_isotropic().then(|| RingFilter::new(lobes));
+        let coarse_leaves = (COARSE_HORIZON_LEAVES as usize * tree.leaf_count() / (6 * 64 * 64)).max(1) as u32;
         let partitions = match shading_angle {
-            Some(angle) => vec![ShadingPartition::new(tree, angle, 0.0)],
+            Some(angle) => vec![ShadingPartition::new(tree, angle, 0.0, coarse_leaves)],
             None if ring.is_some() => SHADING_TIERS
                 .iter()
-                .map(|&(angle, min_wo_z)| ShadingPartition::new(tree, (angle * sigma).min(MAX_SHADING_ANGLE.max(0.25 * sigma)), min_wo_z))
+                .map(|&(angle, min_wo_z)| ShadingPartition::new(tree, (angle * sigma).min(MAX_SHADING_ANGLE.max(0.25 * sigma)), min_wo_z, coarse_leaves))
                 .collect(),
-            None => vec![ShadingPartition::new(tree, 0.25 * sigma, 0.0)],
+            None => vec![ShadingPartition::new(tree, 0.25 * sigma, 0.0, coarse_leaves)],
         };
-        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), partitions, coarse_leaves: (COARSE_HORIZON_LEAVES as usize * tree.leaf_count() / (6 * 64 * 64)).max(1) as u32, ring }
+        Self { mesh, cuts, tree, lobes, tangents, grid: LobeGrid::new(lobes), partitions, coarse_leaves, ring }
     }
 
     /// Number of nodes in each shading partition (over the whole sphere), coarsest first, with its
@@ -502,10 +573,26 @@ impl<'a> TransferContext<'a> {
                     .collect()
             })
             .collect();
+        let piece_light: Vec<Vec<PieceLight>> = self
+            .partitions
+            .iter()
+            .map(|part| {
+                part.pieces
+                    .iter()
+                    .map(|p| {
+                        let (a, z) = (p.first as usize, p.end as usize);
+                        let (power, omega) = (light.power(a, z), light.omega(a, z));
+                        let radiance = if omega > 0.0 { power.map(|x| x / omega) } else { [0.0; 3] };
+                        PieceLight { radiant: light.radiant_moment(a, z), radiance }
+                    })
+                    .collect()
+            })
+            .collect();
+        let lights = PartitionLights { nodes: &node_light, pieces: &piece_light };
         let bins = self.ring.as_ref().map_or(0, |r| r.levels.len() * (r.res + 1));
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
-            .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: LitRuns::default(), entries: RingEntries::default() }, |scratch, f| self.pixel(f, &spans, light, &node_light, eye, f0, j_count, scratch))
+            .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: LitRuns::default(), entries: RingEntries::default() }, |scratch, f| self.pixel(f, &spans, light, &lights, eye, f0, j_count, scratch))
             .collect();
         let mut pixels = Vec::with_capacity(results.len());
         let mut t = Vec::with_capacity(results.len() * 3 * j_count);
@@ -519,7 +606,7 @@ impl<'a> TransferContext<'a> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, node_light: &[Vec<NodeLight>], eye: DVec3, f0: f64, j_count: usize, scratch: &mut Scratch) -> (PixelSample, Vec<f32>, [f64; 3]) {
+    fn pixel(&self, f: &Fragment, spans: &[Option<Vec<Span>>], light: &LightSums, lights: &PartitionLights, eye: DVec3, f0: f64, j_count: usize, scratch: &mut Scratch) -> (PixelSample, Vec<f32>, [f64; 3]) {
         let Scratch { hist, runs, entries } = scratch;
         runs.clear();
         let tri = self.mesh.triangles[f.triangle as usize];
@@ -552,7 +639,7 @@ impl<'a> TransferContext<'a> {
         // The coarsest partition this view direction allows (grazing views narrow the lobes in wi).
         // A pixel with no specular term (wo below its shading horizon) needs only E: the coarsest.
         let pi = if specular { self.partitions.iter().position(|p| wo.z >= p.min_wo_z).unwrap_or(self.partitions.len() - 1) } else { 0 };
-        let (part, node_light) = (&self.partitions[pi], &node_light[pi]);
+        let (part, node_light, piece_light) = (&self.partitions[pi], &lights.nodes[pi], &lights.pieces[pi]);
         for_each_run(&vertex_spans, &b, &part.ranges, leaves, |a, z, vis, si| {
             let whole = part.ranges[si] == (a as u32, z as u32);
             // ∫ L max(ω·n, 0) dω over the run, per channel: its radiant moment · n (exact up to
@@ -568,6 +655,8 @@ impl<'a> TransferContext<'a> {
             let radiant = if whole { node_light[si].radiant } else { light.radiant_moment(a, z) };
             let cos_power: [f64; 3] = if cone.cos > 0.0 && cb > cone.sin {
                 std::array::from_fn(|c| radiant[c].dot(normal))
+            } else if whole {
+                part.clipped_cosine_power(si, piece_light, normal)
             } else {
                 light.clipped_cosine_power(self.tree, part.nodes[si] as usize, a, z, normal, self.coarse_leaves, &radiant)
             };
