@@ -41,6 +41,11 @@ use rayon::prelude::*;
 /// Relative threshold under which a lobe is not evaluated: G < e^-14 ≈ 8e-7.
 pub const LOBE_CUTOFF_EXPONENT: f64 = 14.0;
 
+/// Where the ring table's rows end (relative to a lobe's peak of 1): e^-10 ≈ 4.5e-5. What lies
+/// beyond is a fraction erfc(√10) ≈ 8e-6 of a lobe's integral (e^-14, the lobe grid's cutoff, flushed
+/// 20 % more points per pixel for nothing visible in T).
+pub const RING_CUTOFF_EXPONENT: f64 = 10.0;
+
 /// Which lobes can be non-negligible at a half-vector: an octahedral grid over the upper hemisphere
 /// of local half-vectors, each cell listing the lobes whose support cone meets the cell's bounding cap.
 /// (Ring lobes need no grid: the transfer sums them through the ring table.)
@@ -138,7 +143,7 @@ impl RingFilter {
         let lambda = lobes.lambda();
         let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(srbf::PAPER_SIGMA);
         let res = ((Self::RES_PER_INVERSE_SIGMA / sigma / 64.0).ceil() as usize * 64).clamp(Self::RES_RANGE.0, Self::RES_RANGE.1);
-        let cutoff = (-LOBE_CUTOFF_EXPONENT).exp();
+        let cutoff = (-RING_CUTOFF_EXPONENT).exp();
         let polar: Vec<(f64, f64)> = lobes.centres().iter().map(|c| (c.z, (c.x * c.x + c.y * c.y).sqrt())).collect();
         let mut rows = Vec::with_capacity(Self::LEVELS.len() * polar.len() * (res + 1));
         let mut support = Vec::new();
@@ -403,8 +408,10 @@ fn ring_entries_loop(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world:
         let (wo_h, cos_h) = ((1.0 + c) * inv, ((k1 + wo_z) * inv).min(1.0));
         let s = static_term_parts(k1, wo_z, wo_h, f0);
         let s = if valid && s > 0.0 { s } else { 0.0 };
-        // The spread in half-vector space: v_ω / (4 wo·h) (the geometric mean of its two axes' scales).
-        let (l, fl) = ring.level(v_omega[i] / (4.0 * wo_h.max(1e-3)));
+        // The spread in half-vector space: v = v_ω / (4 wo·h) (the geometric mean of its two axes'
+        // scales), as the filtered peak 1/(1 + 2λv) = 4 wo·h / (4 wo·h + 2λ v_ω) (one division).
+        let m = 4.0 * wo_h.max(1e-3);
+        let (l, fl) = ring.level_at_peak(m / (m + ring.two_lambda * v_omega[i]));
         let (k, fk) = ring.position(cos_h);
         lower[i] = s * (1.0 - fl);
         upper[i] = s * fl;
