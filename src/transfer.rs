@@ -167,8 +167,9 @@ impl RingFilter {
         Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
-    /// Level and the weight of the level above for a spread v (rad², half-vector space).
-    #[inline(always)]
+    /// Level and the weight of the level above for a spread v (rad², half-vector space). (The
+    /// transfer computes the peak in one division, [`ring_entries`]; the tests read the table by this.)
+    #[cfg(test)]
     fn level(&self, spread: f64) -> (usize, f64) {
         // x = 0 gives p = 1 (level 0); x < 0 or NaN too.
         self.level_at_peak(1.0 / (1.0 + self.two_lambda * spread))
