@@ -31,6 +31,9 @@
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
 //!
+//! 8. A vertex may be given its neighbours' agreed cells ([`Prior`], [`super::sparse`] rule 4): those
+//!    cells are set before the cut is built and cast no ray; everything else is as above.
+//!
 //! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon leaf
 //! lies in exactly one; values are in [0, 1]; the result does not depend on the thread that made it.
 
@@ -84,6 +87,10 @@ pub struct VertexCut {
     pub epsilon_used: f64,
     /// Interpolated from traced neighbours instead of traced (decision (f), [`super::sparse`]).
     pub interpolated: bool,
+    /// What the vertex knows of each visibility cell, when asked for ([`Prior::record`]; empty
+    /// otherwise): per 64 cells two words, the cells whose visibility along their ray is known exactly
+    /// and, of those, the visible ones. Used while baking only (not stored in the bake).
+    pub cell_bits: Vec<[u64; 2]>,
 }
 
 /// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by (refinement level,
@@ -214,6 +221,66 @@ impl CellNeighbours {
     }
 }
 
+/// Visibility a vertex takes from its traced neighbours instead of tracing ([`super::sparse`]), and
+/// whether to record its own for others. `cells` lists the visibility cells (node, first leaf, end
+/// leaf) in leaf order; `agreed` ([`VertexCut::cell_bits`]' layout) the cells whose visibility its
+/// sampled neighbours all know and agree on ([`super::sparse::agreed_cells`]): each is set to it before
+/// the cut is built, so its ray is not cast. The default takes and records nothing.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Prior<'a> {
+    pub cells: &'a [(u32, u32, u32)],
+    pub agreed: &'a [[u64; 2]],
+    /// Fill [`VertexCut::cell_bits`].
+    pub record: bool,
+}
+
+impl Prior<'_> {
+    /// The cells of `cell_leaves` leaves (the largest nodes that small), in leaf order.
+    pub fn cells(tree: &LightTree, cell_leaves: usize) -> Vec<(u32, u32, u32)> {
+        let nodes = tree.nodes();
+        super::decisions::nodes_of_at_most(tree, cell_leaves.max(1) as u32, 0)
+            .into_iter()
+            .map(|k| (k as u32, nodes[k].first, nodes[k].first + nodes[k].count))
+            .collect()
+    }
+}
+
+/// [`VertexCut::cell_bits`] of a vertex just cut: a cell's visibility is known when its ray was cast
+/// (its scratch stamp is this vertex's) or a cut node of V exactly 1 or 0 covers it (a free cone, or
+/// cells merged that were all visible or all not); not where the cut guessed (V = ½), splits it
+/// finer than a cell or has nothing (below the horizon).
+fn cell_bits(scratch: &CutScratch, tree: &LightTree, entries: &[(u32, f32)], cells: &[(u32, u32, u32)]) -> Vec<[u64; 2]> {
+    let mut bits = vec![[0u64; 2]; cells.len().div_ceil(64)];
+    let nodes = tree.nodes();
+    let mut e = 0usize;
+    for (i, &(_, first, end)) in cells.iter().enumerate() {
+        let known = if scratch.stamp[first as usize] == scratch.generation {
+            Some(scratch.visible[first as usize])
+        } else {
+            while e < entries.len() && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first {
+                e += 1;
+            }
+            entries.get(e).and_then(|&(k, v)| {
+                let node = &nodes[k as usize];
+                let covers = node.first <= first && node.first + node.count >= end;
+                match v {
+                    _ if !covers => None,
+                    1.0 => Some(true),
+                    0.0 => Some(false),
+                    _ => None,
+                }
+            })
+        };
+        if let Some(visible) = known {
+            bits[i / 64][0] |= 1 << (i % 64);
+            if visible {
+                bits[i / 64][1] |= 1 << (i % 64);
+            }
+        }
+    }
+    bits
+}
+
 /// Marks for refinement each cell traced at size `cell` (entries of `scratch.traced` from `from` on)
 /// that has a traced neighbour of the other visibility: a shadow edge runs through or beside it.
 /// Returns whether any was marked.
@@ -251,8 +318,24 @@ pub fn vertex_cut(
     settings: &CutSettings,
     neighbours: &CellNeighbours,
     scratch: &mut CutScratch,
+    prior: Prior,
 ) -> VertexCut {
     scratch.next_vertex();
+    for (w, &[known, visible]) in prior.agreed.iter().enumerate() {
+        let mut rest = known;
+        while rest != 0 {
+            let i = w * 64 + rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let Some(&(k, first, _)) = prior.cells.get(i) else { break };
+            // A top-level cell's scratch key is its first leaf ([`Ctx::key`]).
+            scratch.stamp[first as usize] = scratch.generation;
+            scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
+            if settings.boundary_levels > 0 {
+                // Taken as traced, so that a shadow edge beside it is refined (with rays).
+                scratch.traced.push((k, settings.cell_leaves.max(1) as u32));
+            }
+        }
+    }
     let apex = position + normal * offset;
     let mut ctx = Ctx {
         tree,
@@ -292,7 +375,8 @@ pub fn vertex_cut(
         entries.clear();
         build(&mut ctx, 0, false, top, &mut entries);
     }
-    VertexCut { entries, rays: ctx.rays, epsilon_used: ctx.epsilon, interpolated: false }
+    let cell_bits = if prior.record { cell_bits(ctx.scratch, tree, &entries, prior.cells) } else { Vec::new() };
+    VertexCut { entries, rays: ctx.rays, epsilon_used: ctx.epsilon, interpolated: false, cell_bits }
 }
 
 impl Ctx<'_> {

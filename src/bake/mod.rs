@@ -65,6 +65,35 @@ impl Default for BakeSettings {
     }
 }
 
+/// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of their
+/// positions, ties and `None`s in index order (the `None`s last).
+fn morton_order(points: &[Option<(DVec3, DVec3)>]) -> Vec<u32> {
+    let (lo, hi) = points.iter().flatten().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)));
+    let scale = DVec3::splat((1u64 << 21) as f64 - 1.0) / (hi - lo).max(DVec3::splat(1e-30));
+    // Spreads the low 21 bits of x to every third bit.
+    let spread = |x: u64| {
+        let mut x = x & 0x1f_ffff;
+        x = (x | (x << 32)) & 0x1f_0000_0000_ffff;
+        x = (x | (x << 16)) & 0x1f_0000_ff00_00ff;
+        x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+        x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+        (x | (x << 2)) & 0x1249_2492_4924_9249
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, point)| {
+            let key = point.map_or(u64::MAX, |(p, _)| {
+                let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat((1u64 << 21) as f64 - 1.0));
+                spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2)
+            });
+            (key, i as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// Why a bake failed.
 #[derive(Debug, thiserror::Error)]
 pub enum BakeError {
@@ -197,6 +226,8 @@ pub struct Baker<'a> {
     ring_prefix: Vec<DVec3>,
     /// Which visibility cells border which (boundary refinement, [`CutSettings::boundary_levels`]).
     cell_neighbours: cuts::CellNeighbours,
+    /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
+    cells: Vec<(u32, u32, u32)>,
     /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced; empty
     /// when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
@@ -306,6 +337,7 @@ impl<'a> Baker<'a> {
             sampling_reason: String::new(),
             interpolated_vertices: 0,
         };
+        let cells = if trace_visibility { cuts::Prior::cells(&tree, settings.cut.cell_leaves) } else { Vec::new() };
         let hemisphere_totals = if sampled.is_empty() { sparse::HemisphereTotals::default() } else { sparse::HemisphereTotals::new(&tree, &ring_prefix) };
         Ok(Self {
             scene,
@@ -321,6 +353,7 @@ impl<'a> Baker<'a> {
             decision_seconds: start.elapsed().as_secs_f64(),
             ring_prefix,
             cell_neighbours,
+            cells,
             hemisphere_totals,
             vertex_neighbours,
             sampled,
@@ -366,24 +399,32 @@ impl<'a> Baker<'a> {
     /// number of vertices finished so far (from any thread).
     pub fn bake_vertices(&self, vertices: &[u32], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
         let points: Vec<Option<(DVec3, DVec3)>> = vertices.iter().map(|&v| self.positions.get(v as usize).copied().zip(self.normals.get(v as usize).copied())).collect();
-        self.bake_points(&points, progress)
+        self.bake_points(&points, &[], false, progress)
     }
 
     /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
-    /// gives an empty cut.
-    fn bake_points(&self, points: &[Option<(DVec3, DVec3)>], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+    /// gives an empty cut. `agreed[i]`, where given, is what point i takes from its traced neighbours
+    /// and `record` whether each records what it knows for others ([`cuts::Prior`]).
+    fn bake_points(&self, points: &[Option<(DVec3, DVec3)>], agreed: &[Vec<[u64; 2]>], record: bool, progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
         let done = std::sync::atomic::AtomicUsize::new(0);
-        points
+        // Traced in Morton order of their positions: each thread takes a contiguous block of that order,
+        // so consecutive vertices' rays cross the same BVH nodes and triangles, which stay in its caches.
+        // Each cut depends on its own point alone, so the order changes the time only.
+        let order = morton_order(points);
+        let cuts: Vec<VertexCut> = order
             .par_iter()
             .map_init(
                 || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
-                |scratch, point| {
+                |scratch, &i| {
                     let cut = if !self.decisions.trace_visibility {
                         // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
-                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon, interpolated: false }
+                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon, interpolated: false, cell_bits: Vec::new() }
                     } else {
-                        match point {
-                            Some((p, n)) => cuts::vertex_cut(*p, *n, self.offset, &self.tree, &self.tracer, &self.settings.cut, &self.cell_neighbours, scratch),
+                        match points[i as usize] {
+                            Some((p, n)) => {
+                                let prior = cuts::Prior { cells: &self.cells, agreed: agreed.get(i as usize).map_or(&[], |a| a.as_slice()), record };
+                                cuts::vertex_cut(p, n, self.offset, &self.tree, &self.tracer, &self.settings.cut, &self.cell_neighbours, scratch, prior)
+                            }
                             None => VertexCut::default(),
                         }
                     };
@@ -394,7 +435,12 @@ impl<'a> Baker<'a> {
                     cut
                 },
             )
-            .collect()
+            .collect();
+        let mut out = vec![VertexCut::default(); points.len()];
+        for (&i, cut) in order.iter().zip(cuts) {
+            out[i as usize] = cut;
+        }
+        out
     }
 
     /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's vertices
@@ -441,7 +487,9 @@ impl<'a> Baker<'a> {
                 }
             }
         }
-        let cuts = self.bake_vertices(&first, &|k| progress(k.min(own)));
+        // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
+        let points: Vec<Option<(DVec3, DVec3)>> = first.iter().map(|&v| Some((self.positions[v as usize], self.normals[v as usize]))).collect();
+        let cuts = self.bake_points(&points, &[], true, &|k| progress(k.min(own)));
         store(&first, cuts, per_vertex, baked);
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo.iter().copied().filter(|&v| !baked[v as usize]).collect();
@@ -477,7 +525,22 @@ impl<'a> Baker<'a> {
         }
         let done = own + interpolated;
         progress(done);
-        let cuts = self.bake_vertices(&traced, &|k| progress(done + k));
+        // Where a traced vertex's sampled neighbours all agree on a cell, it takes their visibility.
+        let agreed: Vec<Vec<[u64; 2]>> = {
+            let per_vertex: &[VertexCut] = per_vertex;
+            traced
+                .par_iter()
+                .map(|&v| match sparse::anchors(v as usize, &self.positions, &self.normals, &self.vertex_neighbours, &self.sampled, max_edge) {
+                    Some(anchors) => {
+                        let bits: Vec<&[[u64; 2]]> = anchors.iter().map(|&u| per_vertex[u as usize].cell_bits.as_slice()).collect();
+                        sparse::agreed_cells(&bits)
+                    }
+                    None => Vec::new(),
+                })
+                .collect()
+        };
+        let points: Vec<Option<(DVec3, DVec3)>> = traced.iter().map(|&v| Some((self.positions[v as usize], self.normals[v as usize]))).collect();
+        let cuts = self.bake_points(&points, &agreed, false, &|k| progress(done + k));
         store(&traced, cuts, per_vertex, baked);
     }
 
@@ -568,7 +631,7 @@ impl<'a> Baker<'a> {
                     Some((p, mesh.normals[v].as_dvec3().try_normalize().unwrap_or(DVec3::Y)))
                 })
                 .collect();
-            per_vertex.extend(self.bake_points(&points, &|_| {}));
+            per_vertex.extend(self.bake_points(&points, &[], false, &|_| {}));
             split_total += parents.len();
             parents_all.extend(parents);
             rounds_done += 1;

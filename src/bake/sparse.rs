@@ -20,6 +20,15 @@
 //!    blends the corners' V with the same kind of weights, so an interpolated vertex stands where a
 //!    coarser mesh's interpolation would: the accuracy model of the refinement, which splits an edge
 //!    only where its ends differ by more than the threshold.
+//! 4. A vertex that must be traced after all, where (a)–(c) hold, takes from its sampled neighbours
+//!    every visibility cell they all know exactly and agree on ([`agreed_cells`]: each recorded, while
+//!    traced, which cells' rays it cast or settled by a free cone or a pure cut node, and with what
+//!    result) and casts rays for the rest. A cell's visibility then differs from its own ray's only
+//!    where an occluder's edge passes between the vertex and every one of its neighbours' rays along
+//!    the cell, all pointing the same way from points within `min_edge` of it. Measured on
+//!    dragon_100k under courtyard (`tests/bake_visibility.rs`, 400 vertices against a ray per
+//!    direction): those vertices' error 2.95 % against 2.83 % traced alone, 44 % fewer rays over the
+//!    sample; the whole bake 11.95 M → 8.50 M rays.
 //!
 //! Inputs: the mesh's triangles and positions, the traced cuts, the light tree, the refinement's
 //! per-leaf weights. Outputs: which vertices are sampled, which are interpolated, and their cuts.
@@ -67,6 +76,48 @@ pub fn sampled_vertices(neighbours: &[Vec<u32>]) -> Vec<bool> {
     sampled
 }
 
+/// The sampled neighbours of a vertex that is not sampled, when rule 2's conditions on the geometry
+/// hold ((a) short edges, (b) at least two of them, (c) normals within [`MAX_NORMAL_DEG`]); `None`
+/// otherwise.
+pub fn anchors(v: usize, positions: &[DVec3], normals: &[DVec3], neighbours: &[Vec<u32>], sampled: &[bool], max_edge: f64) -> Option<Vec<u32>> {
+    let (p, n) = (*positions.get(v)?, *normals.get(v)?);
+    let around = neighbours.get(v)?;
+    if *sampled.get(v)? || around.iter().any(|&u| positions[u as usize].distance(p) > max_edge) {
+        return None;
+    }
+    let cos_max = MAX_NORMAL_DEG.to_radians().cos();
+    let anchors: Vec<u32> = around.iter().copied().filter(|&u| sampled[u as usize]).collect();
+    if anchors.len() < 2 || anchors.iter().any(|&u| normals[u as usize].dot(n) < cos_max) {
+        return None;
+    }
+    Some(anchors)
+}
+
+/// The cells whose visibility every one of `bits` ([`VertexCut::cell_bits`] of a vertex's sampled
+/// neighbours) knows, all the same: where they agree like this, a vertex that must be traced takes
+/// their visibility instead of casting its own ray ([`super::cuts::Prior`]). Empty when any of them
+/// recorded nothing (or for none).
+pub fn agreed_cells(bits: &[&[[u64; 2]]]) -> Vec<[u64; 2]> {
+    let Some(first) = bits.first() else { return Vec::new() };
+    if bits.iter().any(|b| b.len() != first.len() || b.is_empty()) {
+        return Vec::new();
+    }
+    (0..first.len())
+        .map(|w| {
+            let (mut known, mut all_visible, mut any_visible) = (!0u64, !0u64, 0u64);
+            for b in bits {
+                let [k, v] = b[w];
+                known &= k;
+                all_visible &= v;
+                any_visible |= v;
+            }
+            // Known by all, and visible in all or in none.
+            let agreed = known & (all_visible | !any_visible);
+            [agreed, agreed & all_visible]
+        })
+        .collect()
+}
+
 /// Whether vertex `v` may be interpolated (rule 2 of the module docs) and, if so, its sampled neighbours
 /// with their weights (inverse distance, summing to 1). `cut_of(u)` gives sampled vertex u's traced cut.
 #[allow(clippy::too_many_arguments)]
@@ -82,16 +133,8 @@ pub fn interpolation_weights<'c>(
     prefix: &[DVec3],
     cut_of: &dyn Fn(usize) -> &'c [(u32, f32)],
 ) -> Option<Vec<(u32, f64)>> {
-    let (p, n) = (*positions.get(v)?, *normals.get(v)?);
-    let around = neighbours.get(v)?;
-    if sampled[v] || around.iter().any(|&u| positions[u as usize].distance(p) > max_edge) {
-        return None;
-    }
-    let cos_max = MAX_NORMAL_DEG.to_radians().cos();
-    let anchors: Vec<u32> = around.iter().copied().filter(|&u| sampled[u as usize]).collect();
-    if anchors.len() < 2 || anchors.iter().any(|&u| normals[u as usize].dot(n) < cos_max) {
-        return None;
-    }
+    let anchors = anchors(v, positions, normals, neighbours, sampled, max_edge)?;
+    let (p, n) = (positions[v], normals[v]);
     for (i, &a) in anchors.iter().enumerate() {
         for &b in &anchors[i + 1..] {
             if visibility_difference(tree, prefix, cut_of(a as usize), cut_of(b as usize), n) > threshold {
@@ -231,7 +274,7 @@ pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], nor
         emit_range(tree, k, pos, end, v, normal, &mut entries);
         pos = end;
     }
-    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true }, if total > 0.0 { (uncovered / total).min(1.0) } else { 0.0 })
+    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true, cell_bits: Vec::new() }, if total > 0.0 { (uncovered / total).min(1.0) } else { 0.0 })
 }
 
 #[cfg(test)]
