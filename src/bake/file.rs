@@ -14,8 +14,10 @@ use super::{BakeSettings, BakeStats, Cuts, Decisions, Refinement};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Current format version; bump on any change of layout or meaning.
-pub const FORMAT_VERSION: u32 = 5;
+/// Current format version; bump on any change of layout or meaning, or of how the same inputs are
+/// baked (so that a bake made the old way is rebuilt, not reused). 6: vertices traced after all take
+/// their sampled neighbours' agreed visibility cells (2026-11-24).
+pub const FORMAT_VERSION: u32 = 6;
 const MAGIC: &[u8; 8] = b"GLINTBAK";
 
 /// What a bake was made from and how.

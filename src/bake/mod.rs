@@ -371,7 +371,7 @@ impl<'a> Baker<'a> {
         }
         let sampled = self.sampled.iter().filter(|&&s| s).count();
         format!(
-            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced",
+            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with short edges taking from their sampled neighbours every visibility cell they agree on)",
             self.settings.refine.min_edge,
             self.settings.refine.threshold,
             sparse::MAX_NORMAL_DEG,
