@@ -28,7 +28,7 @@
 //! pixels are independent, so the result does not depend on the thread count; no IO.
 
 use crate::bake::{Cuts, Span, for_each_run};
-use crate::brdf::dbrdf::{static_term, static_term_parts};
+use crate::brdf::dbrdf::{half_vector_cosines_masked, static_term, static_term_parts};
 use crate::light::LightSums;
 use crate::raster::{Fragment, rasterize};
 use crate::render::prt::{LUMINANCE, luminance, spread};
@@ -364,8 +364,8 @@ struct RingEntries {
     k: Vec<u32>,
 }
 
-/// The ring-histogram entries of a pixel's lit runs: the half-vector's cosines (as
-/// `half_vector_cosines`), the static term, the filter level of the run's spread and the table
+/// The ring-histogram entries of a pixel's lit runs: the half-vector's cosines
+/// ([`half_vector_cosines_masked`]), the static term, the filter level of the run's spread and the table
 /// position, with no branch on the data (invalid runs get weights of 0), so that the loop runs
 /// several runs per instruction. The scatter into the histogram stays a loop of its own.
 fn ring_entries(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world: DVec3, wo_z: f64, f0: f64, out: &mut RingEntries) {
@@ -403,10 +403,7 @@ fn ring_entries_loop(ring: &RingFilter, runs: &LitRuns, normal: DVec3, wo_world:
     for i in 0..n {
         let k1 = x[i] * normal.x + y[i] * normal.y + z[i] * normal.z;
         let c = x[i] * wo_world.x + y[i] * wo_world.y + z[i] * wo_world.z;
-        let len2 = 2.0 + 2.0 * c;
-        let valid = k1 > 0.0 && len2 > 1e-24;
-        let inv = 1.0 / len2.max(1e-24).sqrt();
-        let (wo_h, cos_h) = ((1.0 + c) * inv, ((k1 + wo_z) * inv).min(1.0));
+        let (valid, wo_h, cos_h) = half_vector_cosines_masked(k1, wo_z, c);
         let s = static_term_parts(k1, wo_z, wo_h, f0);
         let s = if valid && s > 0.0 { s } else { 0.0 };
         // The spread in half-vector space: v = v_ω / (4 wo·h) (the geometric mean of its two axes'
@@ -712,7 +709,7 @@ impl<'a> TransferContext<'a> {
             }
         });
         if let Some(ring) = &self.ring {
-            // Ring lobes need only h·n ([`half_vector_cosines`]: no local frame). Each run's weight
+            // Ring lobes need only h·n ([`half_vector_cosines_masked`]: no local frame). Each run's weight
             // goes to the two filter levels and two table points around (x, t): Σ_j g_j(x, t) w.
             let stride = 3 * (ring.res + 1);
             ring_entries(ring, runs, normal, wo_world, wo.z, f0, entries);

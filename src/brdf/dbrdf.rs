@@ -41,12 +41,18 @@ pub fn half_vector(wi: DVec3, wo: DVec3) -> Option<DVec3> {
 /// square root). `None` when wi is at or below the horizon or wi = −wo. What isotropic lobes need.
 #[inline]
 pub fn half_vector_cosines(k1: f64, k2: f64, c: f64) -> Option<(f64, f64)> {
+    let (valid, wo_h, cos_h) = half_vector_cosines_masked(k1, k2, c);
+    valid.then_some((wo_h, cos_h))
+}
+
+/// [`half_vector_cosines`] without a branch on the data, for loops over many directions at once:
+/// (whether there is a half-vector, wi·h, h·n), the cosines finite but meaningless when there is none.
+#[inline(always)]
+pub fn half_vector_cosines_masked(k1: f64, k2: f64, c: f64) -> (bool, f64, f64) {
     let len2 = 2.0 + 2.0 * c;
-    if !(k1 > 0.0 && len2 > 1e-24) {
-        return None;
-    }
-    let inv = 1.0 / len2.sqrt();
-    Some(((1.0 + c) * inv, ((k1 + k2) * inv).min(1.0)))
+    let valid = k1 > 0.0 && len2 > 1e-24;
+    let inv = 1.0 / len2.max(1e-24).sqrt();
+    (valid, (1.0 + c) * inv, ((k1 + k2) * inv).min(1.0))
 }
 
 /// s(wi, wo) = F(wi·h) / (4 d(k1, k2)); 0 when either direction is at or below the horizon.
