@@ -282,6 +282,38 @@ mod tests {
     use super::*;
     use crate::sphere::DirectionSet;
 
+    /// Agreed cells cell by cell, against a plain per-cell rule: known by every neighbour and the same
+    /// in all; over two words (cells 0–127), with one neighbour's unknown cells holding stray visible
+    /// bits (which must not count).
+    #[test]
+    fn agreed_cells_are_those_every_neighbour_knows_alike() {
+        let mut rng = crate::math::Rng::new(11);
+        let neighbours: Vec<Vec<[u64; 2]>> = (0..3)
+            .map(|_| (0..2).map(|_| [rng.next_u64() | rng.next_u64(), rng.next_u64()]).collect())
+            .collect();
+        let views: Vec<&[[u64; 2]]> = neighbours.iter().map(|b| b.as_slice()).collect();
+        let agreed = agreed_cells(&views);
+        assert_eq!(agreed.len(), 2);
+        let bit = |w: u64, i: usize| w >> (i % 64) & 1 == 1;
+        let mut count = 0;
+        for i in 0..128 {
+            let known = neighbours.iter().all(|b| bit(b[i / 64][0], i));
+            let values: Vec<bool> = neighbours.iter().map(|b| bit(b[i / 64][1], i)).collect();
+            let expect = known && values.iter().all(|&v| v == values[0]);
+            assert_eq!(bit(agreed[i / 64][0], i), expect, "cell {i}");
+            if expect {
+                count += 1;
+                assert_eq!(bit(agreed[i / 64][1], i), values[0], "cell {i}");
+            } else {
+                assert!(!bit(agreed[i / 64][1], i), "cell {i}: visible but not agreed");
+            }
+        }
+        assert!(count > 4, "only {count} agreed: the test exercises nothing");
+        // A neighbour that recorded nothing, or none at all: nothing is agreed.
+        assert!(agreed_cells(&[views[0], &[]]).is_empty());
+        assert!(agreed_cells(&[]).is_empty());
+    }
+
     /// Rule 2 condition by condition, on a star: vertex 0 at the origin, vertices 1–4 around it at
     /// distances 1, 1, 1 and 2, the sampled ones 1 and 2 (3 and 4 not).
     #[test]
