@@ -487,16 +487,16 @@ impl ShadingPartition {
             let cone = &piece.cone;
             let cb = cone.axis.dot(n);
             if cone.cos > 0.0 && cb > cone.sin {
-                for c in 0..3 {
-                    cos_power[c] += pl.radiant[c].dot(n).max(0.0);
+                for (p, m) in cos_power.iter_mut().zip(&pl.radiant) {
+                    *p += m.dot(n).max(0.0);
                 }
             } else if cone.cos > 0.0 && cb < -cone.sin {
                 continue;
             } else {
                 let clipped = disc_clipped_cosine(piece.solid_angle, piece.moment.dot(n));
                 if clipped > 0.0 {
-                    for c in 0..3 {
-                        cos_power[c] += pl.radiance[c] * clipped;
+                    for (p, l) in cos_power.iter_mut().zip(pl.radiance) {
+                        *p += l * clipped;
                     }
                 }
             }
