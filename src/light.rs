@@ -286,15 +286,19 @@ impl LightSums {
                 }
             }
             Some(ci) => {
-                let (power, omega) = (self.power(lo, hi), self.omega(lo, hi));
-                if omega > 0.0 {
-                    for c in 0..3 {
-                        cos_power[c] += power[c] / omega * ci;
-                    }
+                for (p, l) in cos_power.iter_mut().zip(self.mean_radiance_of(lo, hi)) {
+                    *p += l * ci;
                 }
             }
         });
         cos_power
+    }
+
+    /// Mean radiance over leaves [a, b) per channel, power / solid angle (0 for no solid angle).
+    #[inline]
+    pub fn mean_radiance_of(&self, a: usize, b: usize) -> [f64; 3] {
+        let (power, omega) = (self.power(a, b), self.omega(a, b));
+        if omega > 0.0 { power.map(|p| p / omega) } else { [0.0; 3] }
     }
 
     /// |C_k| L_k: the node's radiant power per unit area (Σ over its leaves of Ω L).

@@ -13,9 +13,10 @@
 //! into elementary runs of consecutive leaves (cut nodes are leaf ranges in tree order). For each run the prefix sums give
 //! its radiant moment Σ L ∫ ω dω per channel and its power in O(1); V is the barycentric blend of the
 //! three vertices' V_k; ∫ L Ṽ uses the pixel's interpolated normal, exact (radiant moment · n) when the
-//! run lies above the horizon, and where it straddles it split by a walk down the tree into sub-ranges
-//! above (exact) and the nodes of ≤ 16 leaves the horizon cuts (clipped whole by a disc model at their
-//! mean radiance, [`LightTree::split_by_horizon`]). The BRDF is evaluated at the direction the run's
+//! run lies above the horizon, and where it straddles it split into sub-ranges above (exact) and the
+//! nodes of ≤ 16 leaves the horizon cuts (clipped whole by a disc model at their mean radiance): for a
+//! run that is a whole shading node, from that node's flat list of such pieces ([`HorizonPiece`]), for
+//! a part of one by a walk down the tree ([`LightTree::split_by_horizon`]). The BRDF is evaluated at the direction the run's
 //! light comes from (its luminance-weighted moment: a sun inside a node is seen where it is). Ring
 //! lobes (isotropic sets) depend on the half-vector's polar angle alone: a run's weight goes into a
 //! per-pixel histogram over t = √(1 − cos θh) and over *filter levels* — the lobes pre-filtered by the
@@ -112,8 +113,6 @@ impl LobeGrid {
 struct RingFilter {
     /// Intervals in t.
     res: usize,
-    /// x = 2λv of each level, increasing from 0.
-    levels: Vec<f64>,
     /// 1/(1 + x) of each level: the filtered lobe's peak, in which levels are blended.
     peaks: [f64; FILTER_LEVELS],
     /// 1 / (peaks[l] − peaks[l + 1]).
@@ -145,7 +144,7 @@ impl RingFilter {
         let res = ((Self::RES_PER_INVERSE_SIGMA / sigma / 64.0).ceil() as usize * 64).clamp(Self::RES_RANGE.0, Self::RES_RANGE.1);
         let cutoff = (-RING_CUTOFF_EXPONENT).exp();
         let polar: Vec<(f64, f64)> = lobes.centres().iter().map(|c| (c.z, (c.x * c.x + c.y * c.y).sqrt())).collect();
-        let mut rows = Vec::with_capacity(Self::LEVELS.len() * polar.len() * (res + 1));
+        let mut rows = Vec::with_capacity(FILTER_LEVELS * polar.len() * (res + 1));
         let mut support = Vec::new();
         for &x in &Self::LEVELS {
             let lp = lambda / (1.0 + x);
@@ -164,7 +163,7 @@ impl RingFilter {
         }
         let peaks = Self::LEVELS.map(|x| 1.0 / (1.0 + x));
         let inv_gaps = std::array::from_fn(|l| 1.0 / (peaks[l] - peaks[l + 1]));
-        Self { res, levels: Self::LEVELS.to_vec(), peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
+        Self { res, peaks, inv_gaps, two_lambda: 2.0 * lambda, rows, support, lobes: polar.len() }
     }
 
     /// Level and the weight of the level above for a spread v (rad², half-vector space). (The
@@ -592,15 +591,13 @@ impl<'a> TransferContext<'a> {
                     .iter()
                     .map(|p| {
                         let (a, z) = (p.first as usize, p.end as usize);
-                        let (power, omega) = (light.power(a, z), light.omega(a, z));
-                        let radiance = if omega > 0.0 { power.map(|x| x / omega) } else { [0.0; 3] };
-                        PieceLight { radiant: light.radiant_moment(a, z), radiance }
+                        PieceLight { radiant: light.radiant_moment(a, z), radiance: light.mean_radiance_of(a, z) }
                     })
                     .collect()
             })
             .collect();
         let lights = PartitionLights { nodes: &node_light, pieces: &piece_light };
-        let bins = self.ring.as_ref().map_or(0, |r| r.levels.len() * (r.res + 1));
+        let bins = self.ring.as_ref().map_or(0, |r| FILTER_LEVELS * (r.res + 1));
         let results: Vec<(PixelSample, Vec<f32>, [f64; 3])> = fragments
             .par_iter()
             .map_init(|| Scratch { hist: vec![0.0f64; 3 * bins], runs: LitRuns::default(), entries: RingEntries::default() }, |scratch, f| self.pixel(f, &spans, light, &lights, eye, f0, j_count, scratch))
@@ -646,7 +643,7 @@ impl<'a> TransferContext<'a> {
         let vertex_spans: [&[Span]; 3] = std::array::from_fn(|i| spans[tri[i] as usize].as_deref().unwrap_or(&[]));
         let leaves = self.tree.leaf_count() as u32;
         // Per filter level, the histogram points [lo, hi] this pixel touched.
-        let mut touched = [(usize::MAX, 0usize); RingFilter::LEVELS.len()];
+        let mut touched = [(usize::MAX, 0usize); FILTER_LEVELS];
         // The coarsest partition this view direction allows (grazing views narrow the lobes in wi).
         // A pixel with no specular term (wo below its shading horizon) needs only E: the coarsest.
         let pi = if specular { self.partitions.iter().position(|p| wo.z >= p.min_wo_z).unwrap_or(self.partitions.len() - 1) } else { 0 };
@@ -655,9 +652,10 @@ impl<'a> TransferContext<'a> {
             let whole = part.ranges[si] == (a as u32, z as u32);
             // ∫ L max(ω·n, 0) dω over the run, per channel: its radiant moment · n (exact up to
             // per-leaf constant radiance) when it lies wholly above the horizon (the shading node's
-            // corner cone settles most runs at once), else split by a walk down the tree into
-            // sub-ranges above (their radiant moments) and nodes astride (clipped at their mean
-            // radiance). A run in a shading node wholly below the horizon is skipped by its cone.
+            // corner cone settles most runs at once), else split into sub-ranges above (their radiant
+            // moments) and nodes astride (clipped at their mean radiance): a whole node by its pieces,
+            // a part of one by a walk down the tree. A run in a shading node wholly below the horizon
+            // is skipped by its cone.
             let cone = &part.cones[si];
             let cb = cone.axis.dot(normal);
             if cone.cos > 0.0 && cb < -cone.sin {

@@ -398,8 +398,12 @@ impl<'a> Baker<'a> {
     /// Cuts of the given vertices (in parallel), in the order given. `progress` is called with the
     /// number of vertices finished so far (from any thread).
     pub fn bake_vertices(&self, vertices: &[u32], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
-        let points: Vec<Option<(DVec3, DVec3)>> = vertices.iter().map(|&v| self.positions.get(v as usize).copied().zip(self.normals.get(v as usize).copied())).collect();
-        self.bake_points(&points, &[], false, progress)
+        self.bake_points(&self.points_of(vertices), &[], false, progress)
+    }
+
+    /// (position, unit normal) of each vertex, `None` for an index out of range.
+    fn points_of(&self, vertices: &[u32]) -> Vec<Option<(DVec3, DVec3)>> {
+        vertices.iter().map(|&v| self.positions.get(v as usize).copied().zip(self.normals.get(v as usize).copied())).collect()
     }
 
     /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
@@ -488,8 +492,7 @@ impl<'a> Baker<'a> {
             }
         }
         // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
-        let points: Vec<Option<(DVec3, DVec3)>> = first.iter().map(|&v| Some((self.positions[v as usize], self.normals[v as usize]))).collect();
-        let cuts = self.bake_points(&points, &[], true, &|k| progress(k.min(own)));
+        let cuts = self.bake_points(&self.points_of(&first), &[], true, &|k| progress(k.min(own)));
         store(&first, cuts, per_vertex, baked);
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo.iter().copied().filter(|&v| !baked[v as usize]).collect();
@@ -539,8 +542,7 @@ impl<'a> Baker<'a> {
                 })
                 .collect()
         };
-        let points: Vec<Option<(DVec3, DVec3)>> = traced.iter().map(|&v| Some((self.positions[v as usize], self.normals[v as usize]))).collect();
-        let cuts = self.bake_points(&points, &agreed, false, &|k| progress(done + k));
+        let cuts = self.bake_points(&self.points_of(&traced), &agreed, false, &|k| progress(done + k));
         store(&traced, cuts, per_vertex, baked);
     }
 
