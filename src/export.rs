@@ -413,8 +413,8 @@ pub fn material_desc(material: &Material, name: &str, table_resolution: usize, m
         coefficients: material.coefficients.clone(),
         rho_d: material.rho_d,
         f0: material.f0,
-        brdf_convention: material.brdf_convention.clone(),
-        frame_convention: material.frame.clone(),
+        brdf_convention: glint_exporters::material::brdf_convention(isotropic).into(),
+        frame_convention: glint_exporters::material::FRAME_CONVENTION.into(),
         provenance,
         table: glint_exporters::PhTable { resolution: table.resolution() as u32, texels: table.texels().to_vec() },
         fallback,
@@ -430,7 +430,33 @@ pub fn scene_mesh(mesh: &crate::scene::Mesh, tangents: Option<&[glam::Vec4]>) ->
         tangents: tangents.map(|t| t.iter().map(|v| v.to_array()).collect()),
         uvs: mesh.uvs.as_ref().map(|u| u.iter().map(|v| v.to_array()).collect()),
         indices: mesh.triangles.iter().flatten().copied().collect(),
+        camera: None,
+        environment: None,
     }
+}
+
+/// The exporters' camera for a glint camera rendering a `width` × `height` image (its aspect follows
+/// the image, as `glint render` sets it).
+pub fn scene_camera(camera: &crate::scene::Camera, width: u32, height: u32) -> glint_exporters::SceneCamera {
+    let m = camera.world_from_camera;
+    let unit = |v: glam::Vec3| v.as_dvec3().normalize_or_zero().to_array();
+    glint_exporters::SceneCamera {
+        name: camera.name.clone(),
+        eye: camera.eye().as_dvec3().to_array(),
+        forward: unit(-m.z_axis.truncate()),
+        up: unit(m.y_axis.truncate()),
+        yfov_rad: camera.yfov_rad as f64,
+        width,
+        height,
+        znear: camera.znear as f64,
+        zfar: camera.zfar.map(|f| f as f64),
+    }
+}
+
+/// The exporters' environment: the map's texels in glint's orientation, rotated by `rotation_rad`.
+pub fn scene_environment(env: &crate::env::EnvMap, rotation_rad: f64) -> glint_exporters::SceneEnvironment {
+    let source = std::path::Path::new(env.source()).file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    glint_exporters::SceneEnvironment { source, width: env.width(), height: env.height(), texels: env.texels().to_vec(), rotation_rad }
 }
 
 #[cfg(test)]

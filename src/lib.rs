@@ -19,6 +19,7 @@ pub mod fit;
 pub mod gpu;
 pub mod inspect;
 pub mod light;
+pub mod material_file;
 pub mod math;
 pub mod raster;
 pub mod render;

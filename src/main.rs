@@ -32,7 +32,8 @@ enum Command {
     Fit(FitArgs),
     /// Render a fitted material: the PRT frame (tabulated p), or the Monte Carlo reference.
     Render(RenderArgs),
-    /// Export a fitted material: p(h) EXR table, glTF (.glb), USD (.usda), MERL (.binary).
+    /// Export a fitted material: p(h) EXR table, glTF (.glb), USD (.usda), MERL (.binary), and a
+    /// Mitsuba 3 scene (with --scene and --env, or --bake).
     Export(ExportArgs),
     /// The painting app: paint highlights on the object, glint fits the BRDF on release.
     App(AppArgs),
@@ -50,18 +51,8 @@ struct RenderArgs {
     /// The material made by `glint fit`.
     #[arg(long)]
     material: PathBuf,
-    /// A camera of the scene, by name (default: the first camera, or the default camera).
-    #[arg(long, conflicts_with = "orbit")]
-    camera: Option<String>,
-    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
-    orbit: Option<Vec<f32>>,
-    /// Environment rotation about +Y in degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    rotate: f64,
-    /// Image size WxH (default: the camera's).
-    #[arg(long)]
-    size: Option<String>,
+    #[command(flatten)]
+    view: ViewArgs,
     /// Render the Monte Carlo reference with this many samples per pixel instead of the PRT frame.
     #[arg(long, conflicts_with = "gpu")]
     reference: Option<u32>,
@@ -78,6 +69,23 @@ struct RenderArgs {
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
+}
+
+/// The view and light of a render or a scene export (docs/conventions.md §4–5).
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// A camera of the scene, by name (default: the first camera, or the default camera).
+    #[arg(long, conflicts_with = "orbit")]
+    camera: Option<String>,
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    orbit: Option<Vec<f32>>,
+    /// Environment rotation about +Y in degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    rotate: f64,
+    /// Image size WxH (default: the camera's).
+    #[arg(long)]
+    size: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -122,9 +130,19 @@ struct ExportArgs {
     /// Formats, comma-separated (default: all; see --list).
     #[arg(long, value_delimiter = ',')]
     formats: Vec<String>,
-    /// Put the material on this scene's mesh in the glTF and USD files (default: a preview sphere).
-    #[arg(long)]
+    /// Put the material on this scene's mesh in the glTF, USD and Mitsuba files (default: a preview
+    /// sphere), with the view as a camera.
+    #[arg(long, conflicts_with = "bake")]
     scene: Option<PathBuf>,
+    /// Take the scene, its environment and tangent frames from this bake (what `glint render` renders:
+    /// the refined mesh), instead of --scene and --env.
+    #[arg(long)]
+    bake: Option<PathBuf>,
+    /// The environment map that lights the Mitsuba scene (.exr or .hdr).
+    #[arg(long, conflicts_with = "bake")]
+    env: Option<PathBuf>,
+    #[command(flatten)]
+    view: ViewArgs,
     /// Resolution of the p(h) table.
     #[arg(long, default_value_t = glint::export::EXPORT_TABLE_RESOLUTION)]
     table_resolution: usize,
@@ -647,9 +665,9 @@ fn samples_dir() -> PathBuf {
     if local.join("bunny.glb").is_file() { local } else { Path::new(env!("CARGO_MANIFEST_DIR")).join("samples") }
 }
 
+/// A material: glint's material JSON, or the lobe table of glint's own `.glb`/`.gltf`/`.usda` export.
 fn read_material(path: &Path) -> Result<glint::fit::material::Material> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    Ok(glint::fit::material::Material::parse(&text).with_context(|| path.display().to_string())?)
+    Ok(glint::material_file::read_material(path)?)
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
@@ -660,15 +678,8 @@ fn render(args: &RenderArgs) -> Result<()> {
         anyhow::bail!("the material's layout {} is anisotropic but the scene has no tangent field", material.layout.name());
     }
     let lobes = material.lobes()?;
-    let mut camera = pick_view(&loaded.scene, args.camera.as_deref(), args.orbit.as_deref()).or_else(|e| {
-        if args.camera.is_none() && args.orbit.is_none() { Ok(glint::scene::default_camera(&loaded.scene.bounds)) } else { Err(e) }
-    })?;
-    let (w, h) = match &args.size {
-        Some(s) => parse_size(s)?,
-        None => (camera.width.max(1), camera.height.max(1)),
-    };
-    camera.aspect = w as f32 / h as f32;
-    let rotation = args.rotate.to_radians();
+    let (camera, w, h) = render_view(&loaded.scene, args.view.camera.as_deref(), args.view.orbit.as_deref(), args.view.size.as_deref())?;
+    let rotation = args.view.rotate.to_radians();
     let set = glint::sphere::DirectionSet::cube(loaded.header.decisions.resolution)?;
     let tree = glint::sphere::LightTree::build(&set);
     let coefficients = [material.coefficients[0].as_slice(), material.coefficients[1].as_slice(), material.coefficients[2].as_slice()];
@@ -706,7 +717,8 @@ fn render(args: &RenderArgs) -> Result<()> {
     image.fill_background(&loaded.env, rotation, &camera);
     image.write(&args.out, args.exposure)?;
     if args.json {
-        println!("{}", serde_json::json!({"image": args.out, "width": w, "height": h, "renderer": what, "seconds": seconds, "object_pixels": image.covered_count()}));
+        let cam = camera_json(&glint::export::scene_camera(&camera, w, h));
+        println!("{}", serde_json::json!({"image": args.out, "width": w, "height": h, "renderer": what, "seconds": seconds, "object_pixels": image.covered_count(), "camera": cam, "env_rotation_deg": args.view.rotate, "ray_offset": 1e-4 * loaded.scene.bounds.diagonal() as f64}));
     } else {
         println!("wrote {} ({w}x{h}, {what}, {seconds:.2} s, {} object pixels)", args.out.display(), image.covered_count());
     }
@@ -731,15 +743,7 @@ fn export(args: &ExportArgs) -> Result<()> {
     provenance.insert("material_hash_fnv1a64".into(), glint::bake::file::hash_file(material_path)?);
     provenance.insert("fit_residual_rms".into(), format!("{:?}", material.fit.residual_rms));
     provenance.insert("fit_pixels".into(), material.fit.pixels.to_string());
-    let scene = match &args.scene {
-        Some(p) => {
-            let scene = glint::scene::import(p)?;
-            let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
-            provenance.insert("scene_file".into(), p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
-            Some(glint::export::scene_mesh(&scene.mesh, tangents.as_deref()))
-        }
-        None => None,
-    };
+    let scene = export_scene(args, &mut provenance)?;
     if !(16..=4096).contains(&args.table_resolution) {
         anyhow::bail!("--table-resolution {} is outside 16..=4096", args.table_resolution);
     }
@@ -761,6 +765,69 @@ fn export(args: &ExportArgs) -> Result<()> {
         }
     );
     Ok(())
+}
+
+/// The scene an export carries: the mesh (a bake's refined mesh, or an imported scene's), its tangent
+/// frames, the view as a camera and, when given, the environment; `None` without --scene or --bake.
+fn export_scene(args: &ExportArgs, provenance: &mut std::collections::BTreeMap<String, String>) -> Result<Option<glint_exporters::SceneMesh>> {
+    let file_name = |p: &Path| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    let (scene, tangents, env) = match (&args.bake, &args.scene) {
+        (Some(b), _) => {
+            let loaded = load_bake(b)?;
+            provenance.insert("bake".into(), file_name(b));
+            provenance.insert("scene_file".into(), file_name(&loaded.header.scene_file));
+            provenance.insert("env_file".into(), file_name(&loaded.header.env_file));
+            (loaded.scene, loaded.tangents, Some(loaded.env))
+        }
+        (None, Some(p)) => {
+            let scene = glint::scene::import(p)?;
+            let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+            provenance.insert("scene_file".into(), file_name(p));
+            let env = match &args.env {
+                Some(e) => {
+                    provenance.insert("env_file".into(), file_name(e));
+                    Some(glint::env::load(e)?)
+                }
+                None => None,
+            };
+            (scene, tangents, env)
+        }
+        (None, None) => {
+            if args.env.is_some() || args.view.camera.is_some() || args.view.orbit.is_some() || args.view.size.is_some() {
+                anyhow::bail!("--env, --camera, --orbit and --size describe a scene: give --scene or --bake too");
+            }
+            return Ok(None);
+        }
+    };
+    let (camera, w, h) = render_view(&scene, args.view.camera.as_deref(), args.view.orbit.as_deref(), args.view.size.as_deref())?;
+    let mut mesh = glint::export::scene_mesh(&scene.mesh, tangents.as_deref());
+    mesh.camera = Some(glint::export::scene_camera(&camera, w, h));
+    mesh.environment = env.map(|e| glint::export::scene_environment(&e, args.view.rotate.to_radians()));
+    if args.view.rotate != 0.0 {
+        provenance.insert("env_rotation_deg".into(), format!("{:?}", args.view.rotate));
+    }
+    Ok(Some(mesh))
+}
+
+/// The camera `glint render` uses for these options, with its image size: a named camera, an orbit,
+/// or the scene's first camera, else the default camera; the aspect follows the image.
+fn render_view(scene: &glint::scene::Scene, camera: Option<&str>, orbit: Option<&[f32]>, size: Option<&str>) -> Result<(glint::scene::Camera, u32, u32)> {
+    let mut cam = pick_view(scene, camera, orbit).or_else(|e| if camera.is_none() && orbit.is_none() { Ok(glint::scene::default_camera(&scene.bounds)) } else { Err(e) })?;
+    let (w, h) = match size {
+        Some(s) => parse_size(s)?,
+        None => (cam.width.max(1), cam.height.max(1)),
+    };
+    cam.aspect = w as f32 / h as f32;
+    Ok((cam, w, h))
+}
+
+/// The camera as `glint render --json` prints it (docs/conventions.md §4).
+fn camera_json(c: &glint_exporters::SceneCamera) -> serde_json::Value {
+    serde_json::json!({
+        "name": c.name, "eye": c.eye, "forward": c.forward, "up": c.up, "right": c.right(),
+        "yfov_deg": c.yfov_rad.to_degrees(), "width": c.width, "height": c.height,
+        "znear": c.znear, "zfar": c.zfar, "pixel_centres": true,
+    })
 }
 
 /// `glint demo`: the headless main job on the bundled sample.

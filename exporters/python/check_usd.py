@@ -90,14 +90,18 @@ def main():
     if not preview or preview.GetIdAttr().Get() != "UsdPreviewSurface":
         fail("the Material's outputs:surface does not resolve to a UsdPreviewSurface shader")
     glint, _, _ = material.ComputeSurfaceSource("glint")
-    if not glint or "glint" not in glint.GetSourceTypes():
-        fail("the Material's outputs:glint:surface does not resolve to a shader with a 'glint' source asset")
-    node = glint.GetShaderNodeForSourceType("glint")
-    if not node or not node.IsValid():
-        fail("Sdr cannot resolve the glint shader's definition (info:glint:sourceAsset + subIdentifier)")
-    missing = [n for n in ("lambda", "sigma", "centres", "coefficients_r", "coefficients_g", "coefficients_b", "rho_d", "f0", "table", "parameterisation") if not node.GetShaderInput(n)]
+    if not glint or glint.GetInput("model").Get() != "dbrdf-srbf":
+        fail("the Material's outputs:glint:surface does not resolve to the glint shader (inputs:model = dbrdf-srbf)")
+    # No Sdr identity (docs/conventions.md; exporters/src/usd.rs says why): no info:id, no source asset.
+    if glint.GetShaderId() or glint.GetSourceTypes():
+        fail("the glint shader names an Sdr node (info:id or a source type), which usd-core cannot resolve")
+    missing = [n for n in ("lambda", "sigma", "centres", "coefficients_r", "coefficients_g", "coefficients_b", "rho_d", "f0", "table", "parameterisation", "brdf_convention", "frame_convention", "conventions") if not glint.GetInput(n)]
     if missing:
-        fail(f"the glint shader's Sdr definition lacks inputs {missing}")
+        fail(f"the glint shader lacks inputs {missing}")
+    iso = bool(glint.GetInput("isotropic").Get())
+    convention = glint.GetInput("brdf_convention").Get()
+    if ("ring lobes" in convention) != iso or ("I0e" in convention) != iso:
+        fail("brdf_convention does not state the formula of this layout (ring lobes with I0e for isotropic, point lobes otherwise)")
     for shader in (preview, glint):
         api = UsdShade.ConnectableAPI(shader.GetPrim())
         if not api or api.IsContainer() or not shader.GetPrim().IsA(UsdShade.Shader):
@@ -127,6 +131,30 @@ def main():
                     fail(f"{prim.GetPath()}: primvars:normals missing or not per vertex")
     if not bound:
         fail("no gprim is bound to the material")
+
+    # The camera, when the JSON names one: the view glint renders (docs/conventions.md section 4).
+    cameras = [UsdGeom.Camera(p) for p in stage.Traverse() if p.IsA(UsdGeom.Camera)]
+    want_cam = mat_json.get("camera")
+    if want_cam is not None:
+        if len(cameras) != 1:
+            fail(f"expected one Camera prim, found {len(cameras)}")
+        cam = cameras[0].GetCamera(Usd.TimeCode.Default())
+        yfov = math.degrees(2 * math.atan(0.5 * cam.verticalAperture / cam.focalLength))
+        compare("camera yfov", [yfov], [want_cam["yfov_deg"]])
+        compare("camera aspect", [cam.horizontalAperture / cam.verticalAperture], [want_cam["width"] / want_cam["height"]])
+        m = cam.transform
+        compare("camera eye", list(m.ExtractTranslation()), want_cam["eye"])
+        compare("camera forward", [-m[2][k] for k in range(3)], want_cam["forward"])
+        compare("camera up", [m[1][k] for k in range(3)], want_cam["up"])
+    # Tangents, when the mesh has them: per vertex, unit, signs +-1.
+    for prim in bound:
+        pv = UsdGeom.PrimvarsAPI(prim)
+        t, signs = pv.GetPrimvar("tangents"), pv.GetPrimvar("tangentSigns")
+        if t and t.HasValue():
+            n = len(UsdGeom.Mesh(prim).GetPointsAttr().Get())
+            tv, sv = t.Get(), (signs.Get() if signs else None)
+            if len(tv) != n or sv is None or len(sv) != n or any(abs(abs(x) - 1) > 1e-6 for x in sv):
+                fail(f"{prim.GetPath()}: primvars:tangents / tangentSigns are not one unit tangent and one sign per vertex")
 
     # The table asset resolves beside the stage.
     table = glint.GetInput("table").Get()

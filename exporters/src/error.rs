@@ -19,6 +19,15 @@ pub enum ExportError {
     /// The scene mesh is unusable.
     #[error("scene mesh: {reason}")]
     InvalidMesh { reason: String },
+    /// The camera or environment of a scene export is unusable.
+    #[error("scene view: {reason}")]
+    InvalidView { reason: String },
+    /// A format needs what the export was not given (a mesh, a camera, an environment).
+    #[error("format '{format}' needs {what}")]
+    NeedsScene { format: &'static str, what: &'static str },
+    /// A material file read back (`.glb`, `.usda`) is malformed or holds no glint material.
+    #[error("{path}: {reason}")]
+    Import { path: PathBuf, reason: String },
     /// A format name that no exporter answers to.
     #[error("unknown export format '{format}' (known: {known})")]
     UnknownFormat { format: String, known: String },

@@ -12,6 +12,7 @@ use crate::exr::ExrExporter;
 use crate::gltf::GltfExporter;
 use crate::material::{MaterialDesc, SceneMesh};
 use crate::merl::MerlExporter;
+use crate::mitsuba::MitsubaExporter;
 use crate::usd::UsdExporter;
 use std::path::{Path, PathBuf};
 
@@ -24,10 +25,15 @@ pub struct OutputFile {
 
 /// A file format glint can write.
 pub trait Exporter: Send + Sync {
-    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `merl`.
+    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `merl`, `mitsuba`.
     fn name(&self) -> &'static str;
     /// Extensions of the files it writes (without the dot); the first is the main file's.
     fn extensions(&self) -> &'static [&'static str];
+    /// Whether the format needs a scene with a camera and an environment (a whole scene, not only a
+    /// material); `export_all` with no format named leaves such formats out when the scene lacks them.
+    fn needs_view(&self) -> bool {
+        false
+    }
     /// Builds every file in memory; writes nothing.
     fn build(&self, desc: &MaterialDesc, scene: Option<&SceneMesh>, dir: &Path) -> Result<Vec<OutputFile>, ExportError>;
     /// Builds, then writes each file atomically into `dir` (which must exist). Returns the paths written.
@@ -51,9 +57,9 @@ fn write_all(files: &[OutputFile]) -> Result<Vec<PathBuf>, ExportError> {
     Ok(written)
 }
 
-static REGISTRY: [&dyn Exporter; 4] = [&ExrExporter, &GltfExporter, &UsdExporter, &MerlExporter];
+static REGISTRY: [&dyn Exporter; 5] = [&ExrExporter, &GltfExporter, &UsdExporter, &MerlExporter, &MitsubaExporter];
 
-/// Every exporter, in a fixed order: exr, gltf, usd, merl.
+/// Every exporter, in a fixed order: exr, gltf, usd, merl, mitsuba.
 pub fn registry() -> &'static [&'static dyn Exporter] {
     &REGISTRY
 }
@@ -63,13 +69,15 @@ pub fn find_exporter(name: &str) -> Option<&'static dyn Exporter> {
     registry().iter().copied().find(|e| e.name() == name)
 }
 
-/// Exports `desc` in each named format (an empty list means every format) into `dir`.
+/// Exports `desc` in each named format into `dir`. An empty list means every format, less those that
+/// need a view (a camera and an environment) when `scene` has none.
 ///
 /// All names are checked and all files built before the first write. Files several formats share (the
 /// EXR table that glTF and USD reference) are written once. Returns the paths written, in order.
 pub fn export_all(desc: &MaterialDesc, scene: Option<&SceneMesh>, dir: &Path, formats: &[&str]) -> Result<Vec<PathBuf>, ExportError> {
+    let has_view = scene.is_some_and(|s| s.camera.is_some() && s.environment.is_some());
     let chosen: Vec<&dyn Exporter> = if formats.is_empty() {
-        registry().to_vec()
+        registry().iter().copied().filter(|e| has_view || !e.needs_view()).collect()
     } else {
         let mut chosen: Vec<&dyn Exporter> = Vec::new();
         for f in formats {

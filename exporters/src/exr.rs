@@ -7,8 +7,11 @@
 //!
 //! Attributes (besides the required ones): `glint.model`, `glint.name`, `glint.layout`,
 //! `glint.parameterisation` (name and formula), `glint.frame_convention`, `glint.brdf_convention`,
-//! `glint.provenance` (JSON, ASCII with `\\uXXXX` escapes) — strings; `glint.version` — int; `glint.lambda`, `glint.sigma`,
-//! `glint.f0` — double; `glint.rho_d` — v3d (three doubles).
+//! `glint.conventions` (where the exact conventions are stated: docs/conventions.md),
+//! `glint.provenance` (JSON, ASCII with `\\uXXXX` escapes) — strings; `glint.version`,
+//! `glint.isotropic` (0/1), `glint.lobe_count` — int; `glint.lambda`, `glint.sigma`, `glint.f0` —
+//! double; `glint.rho_d` — v3d (three doubles), and again as the floats `glint.rho_d_r`, `_g`, `_b`
+//! (Mitsuba's EXR reader drops v3d attributes).
 //!
 //! Invariants: the header is written by hand, attributes sorted by name, so equal inputs give equal
 //! bytes (the `exr` crate keeps custom attributes in a `HashMap` and would write them in a random
@@ -17,7 +20,7 @@
 
 use crate::error::ExportError;
 use crate::exporter::{Exporter, OutputFile};
-use crate::material::{MaterialDesc, SceneMesh};
+use crate::material::{CONVENTIONS_DOC, MaterialDesc, SceneMesh};
 use crate::table::{PARAMETERISATION_FORMULA, PhTable};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -70,15 +73,15 @@ pub(crate) fn json_ascii(value: &serde_json::Value) -> String {
     out
 }
 
-struct Header {
-    attrs: Vec<(String, &'static str, Vec<u8>)>,
+pub(crate) struct Header {
+    pub(crate) attrs: Vec<(String, &'static str, Vec<u8>)>,
 }
 
 impl Header {
-    fn add(&mut self, name: &str, kind: &'static str, bytes: Vec<u8>) {
+    pub(crate) fn add(&mut self, name: &str, kind: &'static str, bytes: Vec<u8>) {
         self.attrs.push((name.to_string(), kind, bytes));
     }
-    fn text(&mut self, name: &str, value: &str) {
+    pub(crate) fn text(&mut self, name: &str, value: &str) {
         self.add(name, "string", ascii(value).into_bytes());
     }
     fn double(&mut self, name: &str, value: f64) {
@@ -91,6 +94,31 @@ pub fn encode_ph_exr(desc: &MaterialDesc) -> Result<Vec<u8>, ExportError> {
     desc.validate()?;
     let r = desc.table.resolution as usize;
     let mut h = Header { attrs: Vec::new() };
+    h.text("glint.model", &desc.model);
+    h.text("glint.name", &desc.name);
+    h.text("glint.layout", &desc.layout);
+    h.add("glint.version", "int", (desc.version.min(i32::MAX as u32) as i32).to_le_bytes().to_vec());
+    h.double("glint.lambda", desc.lambda);
+    h.double("glint.sigma", desc.sigma);
+    h.double("glint.f0", desc.f0);
+    h.add("glint.rho_d", "v3d", desc.rho_d.iter().flat_map(|v| v.to_le_bytes()).collect());
+    // The same scalars as plain attributes, for readers that drop vector types (Mitsuba's EXR reader).
+    for (k, channel) in ["r", "g", "b"].iter().enumerate() {
+        h.add(&format!("glint.rho_d_{channel}"), "float", (desc.rho_d[k] as f32).to_le_bytes().to_vec());
+    }
+    h.add("glint.isotropic", "int", i32::from(desc.isotropic).to_le_bytes().to_vec());
+    h.add("glint.lobe_count", "int", (desc.centres.len().min(i32::MAX as usize) as i32).to_le_bytes().to_vec());
+    h.text("glint.conventions", CONVENTIONS_DOC);
+    h.text("glint.parameterisation", PARAMETERISATION_FORMULA); // starts with the name, "hemi-octahedral:"
+    h.text("glint.frame_convention", &desc.frame_convention);
+    h.text("glint.brdf_convention", &desc.brdf_convention);
+    h.text("glint.provenance", &json_ascii(&serde_json::json!(desc.provenance)));
+    Ok(encode_rgb_exr(r, r, &desc.table.texels, h))
+}
+
+/// An RGB 32-bit float image as uncompressed scan-line OpenEXR, with the given extra attributes
+/// (`width`, `height` ≥ 1; `texels` row-major, `width × height`, row 0 the first scan line).
+pub(crate) fn encode_rgb_exr(width: usize, height: usize, texels: &[[f32; 3]], mut h: Header) -> Vec<u8> {
     // Required attributes.
     let mut chlist = Vec::new();
     for ch in [b'B', b'G', b'R'] {
@@ -104,7 +132,7 @@ pub fn encode_ph_exr(desc: &MaterialDesc) -> Result<Vec<u8>, ExportError> {
     h.add("channels", "chlist", chlist);
     h.add("compression", "compression", vec![0]);
     let mut window = Vec::new();
-    for v in [0i32, 0, r as i32 - 1, r as i32 - 1] {
+    for v in [0i32, 0, width as i32 - 1, height as i32 - 1] {
         window.extend_from_slice(&v.to_le_bytes());
     }
     h.add("dataWindow", "box2i", window.clone());
@@ -113,23 +141,10 @@ pub fn encode_ph_exr(desc: &MaterialDesc) -> Result<Vec<u8>, ExportError> {
     h.add("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec());
     h.add("screenWindowCenter", "v2f", [0f32.to_le_bytes(), 0f32.to_le_bytes()].concat());
     h.add("screenWindowWidth", "float", 1f32.to_le_bytes().to_vec());
-    // glint's metadata.
-    h.text("glint.model", &desc.model);
-    h.text("glint.name", &desc.name);
-    h.text("glint.layout", &desc.layout);
-    h.add("glint.version", "int", (desc.version.min(i32::MAX as u32) as i32).to_le_bytes().to_vec());
-    h.double("glint.lambda", desc.lambda);
-    h.double("glint.sigma", desc.sigma);
-    h.double("glint.f0", desc.f0);
-    h.add("glint.rho_d", "v3d", desc.rho_d.iter().flat_map(|v| v.to_le_bytes()).collect());
-    h.text("glint.parameterisation", PARAMETERISATION_FORMULA); // starts with the name, "hemi-octahedral:"
-    h.text("glint.frame_convention", &desc.frame_convention);
-    h.text("glint.brdf_convention", &desc.brdf_convention);
-    h.text("glint.provenance", &json_ascii(&serde_json::json!(desc.provenance)));
     h.attrs.sort_by(|a, b| a.0.cmp(&b.0));
 
     let long_names = h.attrs.iter().any(|(n, k, _)| n.len() > 31 || k.len() > 31);
-    let mut out = Vec::with_capacity(1024 + r * 8 + r * (8 + 12 * r));
+    let mut out = Vec::with_capacity(1024 + height * 8 + height * (8 + 12 * width));
     out.extend_from_slice(&20000630i32.to_le_bytes());
     out.extend_from_slice(&(2u32 | if long_names { 0x400 } else { 0 }).to_le_bytes());
     for (name, kind, bytes) in &h.attrs {
@@ -142,22 +157,22 @@ pub fn encode_ph_exr(desc: &MaterialDesc) -> Result<Vec<u8>, ExportError> {
     }
     out.push(0);
     // Offset table: one block per scan line (uncompressed).
-    let line_bytes = 12 * r;
-    let first = out.len() + 8 * r;
-    for y in 0..r {
+    let line_bytes = 12 * width;
+    let first = out.len() + 8 * height;
+    for y in 0..height {
         out.extend_from_slice(&((first + y * (8 + line_bytes)) as u64).to_le_bytes());
     }
-    for y in 0..r {
+    for y in 0..height {
         out.extend_from_slice(&(y as i32).to_le_bytes());
         out.extend_from_slice(&(line_bytes as i32).to_le_bytes());
-        let row = &desc.table.texels[y * r..(y + 1) * r];
+        let row = &texels[y * width..(y + 1) * width];
         for k in [2, 1, 0] {
             for t in row {
                 out.extend_from_slice(&t[k].to_le_bytes());
             }
         }
     }
-    Ok(out)
+    out
 }
 
 /// Writes `<name>_ph.exr`.

@@ -11,7 +11,10 @@
 //! The preview sphere carries positions and normals, plus tangents when the material is anisotropic
 //! (`KHR_materials_anisotropy` needs them); a caller's mesh keeps its tangents and UVs.
 //!
-//! Invariants: one scene, one node, one mesh, one primitive (triangles, u32 indices), one material;
+//! When the scene carries a camera (the view glint renders, docs/conventions.md §4), it is a second
+//! node with a perspective camera (yfov, aspect ratio W/H, near and far planes) and a rigid matrix.
+//!
+//! Invariants: one scene, one mesh node (and a camera node when given), one mesh, one primitive (triangles, u32 indices), one material;
 //! POSITION has exact min/max; normals and tangents are unit (the mesh is validated and normalised);
 //! each attribute has its own 4-byte-aligned buffer view with a target; JSON keys come from
 //! `serde_json`'s ordered map, so equal inputs give equal bytes. Khronos glTF-Validator (2.0.0-dev.3.10)
@@ -146,6 +149,20 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
     });
     if anisotropic {
         root["extensionsUsed"] = json!(["KHR_materials_anisotropy"]);
+    }
+    if let Some(camera) = scene.and_then(|s| s.camera.as_ref()) {
+        let (r, u, f, e) = (camera.right(), camera.up, camera.forward, camera.eye);
+        let mut perspective = json!({ "yfov": camera.yfov_rad, "aspectRatio": camera.width as f64 / camera.height as f64, "znear": camera.znear });
+        if let Some(far) = camera.zfar {
+            perspective["zfar"] = json!(far);
+        }
+        root["cameras"] = json!([{ "name": camera.name, "type": "perspective", "perspective": perspective }]);
+        // Column-major camera-to-world: +X right, +Y up, +Z back (glTF cameras look down −Z).
+        let matrix = [r[0], r[1], r[2], 0.0, u[0], u[1], u[2], 0.0, -f[0], -f[1], -f[2], 0.0, e[0], e[1], e[2], 1.0];
+        if let Some(nodes) = root["nodes"].as_array_mut() {
+            nodes.push(json!({ "name": camera.name, "camera": 0, "matrix": matrix }));
+        }
+        root["scenes"][0]["nodes"] = json!([0, 1]);
     }
     let mut text = serde_json::to_vec(&root).map_err(|e| ExportError::InvalidMaterial {
         material: desc.name.clone(),

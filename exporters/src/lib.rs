@@ -38,17 +38,21 @@
 //! builds all its files in memory before writing; equal inputs give byte-identical files.
 
 pub mod atomic;
+pub mod bessel;
 pub mod brdf;
 pub mod error;
 pub mod exporter;
 pub mod exr;
 pub mod gltf;
+pub mod import;
 pub mod material;
 pub mod merl;
 pub mod npy;
 pub mod sphere;
 pub mod table;
 pub mod usd;
+pub mod view;
+pub mod mitsuba;
 
 pub use atomic::{AtomicWriteError, write_atomic};
 pub use brdf::{eval_from_table, eval_lobes};
@@ -58,5 +62,7 @@ pub use exr::{AttrValue, ExrExporter, read_ph_exr, read_ph_exr_attributes};
 pub use gltf::GltfExporter;
 pub use material::{MODEL, MaterialDesc, PbrFallback, SceneMesh};
 pub use merl::{MerlExporter, MerlTable, merl_lookup, read_merl};
+pub use mitsuba::MitsubaExporter;
+pub use view::{SceneCamera, SceneEnvironment};
 pub use table::{DEFAULT_TABLE_RESOLUTION, PARAMETERISATION, PhTable, hemi_oct_decode, hemi_oct_encode};
 pub use usd::UsdExporter;

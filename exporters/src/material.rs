@@ -10,10 +10,28 @@
 use crate::error::ExportError;
 use crate::merl::MerlTable;
 use crate::table::PhTable;
+use crate::view::{SceneCamera, SceneEnvironment};
 use std::collections::BTreeMap;
 
 /// The model name glint writes.
 pub const MODEL: &str = "dbrdf-srbf";
+
+/// Where every file points for the exact conventions (BRDF, frame, table, camera, environment).
+pub const CONVENTIONS_DOC: &str = "glint docs/conventions.md";
+
+/// The BRDF of an isotropic layout (ring lobes), as every file states it.
+pub const BRDF_CONVENTION_ISOTROPIC: &str = "f_r(wi, wo) = rho_d/pi + p(h) s(wi, wo), without the cosine, in the local frame (z = shading normal); h = normalize(wi + wo); isotropic layout, ring lobes: p(h) = sum_j c_j exp(2 lambda (cos_h cos_j - 1)) I0(2 lambda sin_h sin_j) = sum_j c_j exp(2 lambda (cos(theta_h - theta_j) - 1)) I0e(2 lambda sin_h sin_j), cos_h = h.z, cos_j = xi_j.z (centres listed at azimuth 0; NOT point lobes); s = F(c) / (4 (k1 + k2 - k1 k2)), F(c) = f0 + (1 - f0) (1 - c)^5, c = wi.h, k1 = wi.z, k2 = wo.z; f_r = 0 for k1 <= 0; f_r = rho_d/pi for k2 <= 0 < k1 (silhouette rule); see glint docs/conventions.md";
+
+/// The BRDF of an anisotropic layout (point lobes), as every file states it.
+pub const BRDF_CONVENTION_ANISOTROPIC: &str = "f_r(wi, wo) = rho_d/pi + p(h) s(wi, wo), without the cosine, in the local frame (x = tangent, y = (n x t) * sign(tangent.w), z = shading normal); h = normalize(wi + wo); anisotropic layout, point lobes: p(h) = sum_j c_j exp(2 lambda (h.xi_j - 1)), xi_j in the local frame; s = F(c) / (4 (k1 + k2 - k1 k2)), F(c) = f0 + (1 - f0) (1 - c)^5, c = wi.h, k1 = wi.z, k2 = wo.z; f_r = 0 for k1 <= 0; f_r = rho_d/pi for k2 <= 0 < k1 (silhouette rule); see glint docs/conventions.md";
+
+/// The local frame, as every file states it.
+pub const FRAME_CONVENTION: &str = "local frame: z = shading normal (the interpolated vertex normals, normalised), x = tangent (the interpolated glTF TANGENT xyz, else MikkTSpace tangents from TEXCOORD_0, made orthogonal to z and normalised), y = (z x x) * sign(interpolated tangent.w); isotropic layouts depend on h.z only; see glint docs/conventions.md";
+
+/// The BRDF convention string for a layout.
+pub fn brdf_convention(isotropic: bool) -> &'static str {
+    if isotropic { BRDF_CONVENTION_ISOTROPIC } else { BRDF_CONVENTION_ANISOTROPIC }
+}
 
 /// A fitted material, as plain data.
 #[derive(Debug, Clone, PartialEq)]
@@ -75,6 +93,11 @@ pub struct SceneMesh {
     pub uvs: Option<Vec<[f32; 2]>>,
     /// Triangle list; every index < `positions.len()`.
     pub indices: Vec<u32>,
+    /// The view glint renders the scene from: written as a camera into the glTF and USD files, and
+    /// as the sensor of the Mitsuba scene.
+    pub camera: Option<SceneCamera>,
+    /// The environment that lights the scene (the Mitsuba scene's emitter).
+    pub environment: Option<SceneEnvironment>,
 }
 
 fn finite(xs: &[f64]) -> bool {
@@ -163,6 +186,7 @@ impl MaterialDesc {
             "f0": self.f0,
             "frame": self.frame_convention,
             "brdf_convention": self.brdf_convention,
+            "conventions": CONVENTIONS_DOC,
             "provenance": self.provenance,
         })
     }
@@ -241,6 +265,12 @@ impl SceneMesh {
             Some(t) if t.iter().flatten().any(|x| !x.is_finite()) => return bad("a uv is not finite".into()),
             Some(t) => Some(t.clone()),
         };
+        if let Some(c) = &self.camera {
+            c.validate()?;
+        }
+        if let Some(e) = &self.environment {
+            e.validate()?;
+        }
         Ok(CleanMesh { positions: self.positions.clone(), normals, tangents, uvs, indices: self.indices.clone() })
     }
 }

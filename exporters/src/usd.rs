@@ -14,40 +14,41 @@
 //!     outputs:surface       -> PreviewSurface.outputs:surface
 //!     outputs:glint:surface -> GlintDbrdf.outputs:surface   (render context "glint")
 //!     PreviewSurface (Shader, UsdPreviewSurface: diffuseColor, metallic, roughness, useSpecularWorkflow 0)
-//!     GlintDbrdf (Shader, implementationSource sourceAsset, source type "glint" → this file's
-//!                 /GlintDbrdfSrbfDefinition; inputs: model, version, lambda, sigma, layout, isotropic,
-//!                 centres float3[], coefficients_r/g/b float[], rho_d color3f, f0, table asset,
-//!                 table_resolution, parameterisation token + formula, brdf_convention, frame_convention)
+//!     GlintDbrdf (Shader with no info:id: data for glint-aware readers and renderers, which no
+//!                 Sdr registry knows; inputs: model, version, conventions, lambda, sigma, layout,
+//!                 isotropic, centres double3[], coefficients_r/g/b double[], rho_d color3d, f0,
+//!                 table asset, table_resolution, parameterisation token + formula,
+//!                 brdf_convention (the formula for this layout), frame_convention)
 //!   /Root/<Mesh> (Mesh: points, faceVertexCounts, faceVertexIndices, primvars:normals (vertex),
-//!                 primvars:st when UVs are given, extent; MaterialBindingAPI) — or a Sphere preview
-//! /GlintDbrdfSrbfDefinition (class Shader: the Sdr definition — the same inputs, typed, no values;
-//!                 its info:glint:sourceAsset is the table, so Sdr resolves the node without plugins)
+//!                 primvars:st when UVs are given, primvars:tangents + primvars:tangentSigns (vertex)
+//!                 when the mesh has a tangent field, extent; MaterialBindingAPI) — or a Sphere preview
+//!   /Root/<Camera> (Camera, when the scene carries one: the view glint renders — a rigid
+//!                 xformOp:transform, focalLength and apertures giving its vertical field of view,
+//!                 clippingRange)
 //! ```
 //!
-//! Why the sourceAsset form: an unregistered `info:id` makes `UsdUtils.ComplianceChecker`'s
-//! ShaderPropertyTypeConformanceChecker fail ("invalid shader node"); with a definition prim in the
-//! same layer, usd-core's own UsdShade shader-definition parser resolves the node, and the checker
-//! verifies every input's type against it.
+//! Why the glint shader has no `info:id` and no Sdr definition: an unregistered `info:id` fails
+//! `UsdUtils.ComplianceChecker` ("invalid shader node") and the UsdValidation validators; a
+//! `sourceAsset` definition resolves, but usd-core's shader-definition parser first tries the node's
+//! hashed identifier as a prim name and warns "Invalid prim name" on stderr every time the node is
+//! resolved. A shader without an identifier is valid, passes both checkers and prints nothing. The
+//! exact meaning of every input is docs/conventions.md.
 //!
-//! Invariants: numbers are written as f32 shortest round-trip (`{:?}` of f32), so a reader recovers
-//! every value to float precision; strings are escaped; prim names are sanitised identifiers; no
+//! Invariants: the lobe table's numbers are doubles written shortest round-trip (`{:?}` of f64), so a
+//! reader recovers them exactly; geometry is f32 (`{:?}` of f32); strings are escaped; prim names are sanitised identifiers; no
 //! timestamps or hash-map order, so equal inputs give equal bytes. usd-core's checks pass (tested by
 //! `python/check_usd.py`).
 
 use crate::error::ExportError;
 use crate::exporter::{Exporter, OutputFile};
 use crate::exr::{encode_ph_exr, ph_exr_file_name};
-use crate::material::{MaterialDesc, SceneMesh};
+use crate::material::{CONVENTIONS_DOC, MaterialDesc, SceneMesh};
 use crate::table::{PARAMETERISATION, PARAMETERISATION_FORMULA};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// The glint shader's name (its Sdr definition prim is named [`DEFINITION_PRIM`]).
-pub const GLINT_SHADER_ID: &str = "glint_dbrdf_srbf";
-/// The Sdr source type of the glint shader (`info:glint:sourceAsset`).
-pub const SOURCE_TYPE: &str = "glint";
-/// The root `class Shader` prim that defines the glint shader's inputs for Sdr.
-pub const DEFINITION_PRIM: &str = "GlintDbrdfSrbfDefinition";
+/// The render context of the Material's output that connects the glint shader.
+pub const RENDER_CONTEXT: &str = "glint";
 
 /// What `customData.glint.fallback_anisotropy` means (written beside the numbers).
 pub const ANISOTROPY_CONVENTION: &str = "KHR_materials_anisotropy of the fallback: strength in [0, 1]; rotation in radians, counter-clockwise from the tangent (local x) towards the bitangent; alpha_t = mix(roughness^2, 1, strength^2), alpha_b = roughness^2";
@@ -55,6 +56,15 @@ pub const ANISOTROPY_CONVENTION: &str = "KHR_materials_anisotropy of the fallbac
 /// f32 shortest round-trip text (`1.0`, `0.1`, `1e-7`).
 fn num(x: f64) -> String {
     format!("{:?}", x as f32)
+}
+
+/// f64 shortest round-trip text.
+fn dnum(x: f64) -> String {
+    format!("{x:?}")
+}
+
+fn dvec3(v: [f64; 3]) -> String {
+    format!("({}, {}, {})", dnum(v[0]), dnum(v[1]), dnum(v[2]))
 }
 
 fn num32(x: f32) -> String {
@@ -115,20 +125,21 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let fb = &desc.fallback;
     let mut inputs: Vec<(&str, &str, String)> = vec![
         ("string", "brdf_convention", quote(&desc.brdf_convention)),
-        ("float3[]", "centres", list(&desc.centres, |c| vec3(*c))),
-        ("float[]", "coefficients_r", list(&desc.coefficients[0], |x| num(*x))),
-        ("float[]", "coefficients_g", list(&desc.coefficients[1], |x| num(*x))),
-        ("float[]", "coefficients_b", list(&desc.coefficients[2], |x| num(*x))),
-        ("float", "f0", num(desc.f0)),
+        ("double3[]", "centres", list(&desc.centres, |c| dvec3(*c))),
+        ("double[]", "coefficients_r", list(&desc.coefficients[0], |x| dnum(*x))),
+        ("double[]", "coefficients_g", list(&desc.coefficients[1], |x| dnum(*x))),
+        ("double[]", "coefficients_b", list(&desc.coefficients[2], |x| dnum(*x))),
+        ("string", "conventions", quote(CONVENTIONS_DOC)),
+        ("double", "f0", dnum(desc.f0)),
         ("string", "frame_convention", quote(&desc.frame_convention)),
         ("bool", "isotropic", (if desc.isotropic { "1" } else { "0" }).to_string()),
-        ("float", "lambda", num(desc.lambda)),
+        ("double", "lambda", dnum(desc.lambda)),
         ("token", "layout", quote(&desc.layout)),
         ("token", "model", quote(&desc.model)),
         ("token", "parameterisation", quote(PARAMETERISATION)),
         ("string", "parameterisation_formula", quote(PARAMETERISATION_FORMULA)),
-        ("color3f", "rho_d", vec3(desc.rho_d)),
-        ("float", "sigma", num(desc.sigma)),
+        ("color3d", "rho_d", dvec3(desc.rho_d)),
+        ("double", "sigma", dnum(desc.sigma)),
         ("asset", "table", format!("@./{}@", ph_exr_file_name(&desc.name))),
         ("int", "table_resolution", desc.table.resolution.to_string()),
         ("int", "version", desc.version.min(i32::MAX as u32).to_string()),
@@ -165,7 +176,7 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(o, "                }}");
     let _ = writeln!(o, "            }}");
     let _ = writeln!(o, "        )\n        {{");
-    let _ = writeln!(o, "            token outputs:glint:surface.connect = <{mat_path}/GlintDbrdf.outputs:surface>");
+    let _ = writeln!(o, "            token outputs:{RENDER_CONTEXT}:surface.connect = <{mat_path}/GlintDbrdf.outputs:surface>");
     let _ = writeln!(o, "            token outputs:surface.connect = <{mat_path}/PreviewSurface.outputs:surface>");
     let _ = writeln!(o);
     let _ = writeln!(o, "            def Shader \"PreviewSurface\"\n            {{");
@@ -177,10 +188,7 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(o, "                token outputs:surface");
     let _ = writeln!(o, "            }}");
     let _ = writeln!(o);
-    let _ = writeln!(o, "            def Shader \"GlintDbrdf\"\n            {{");
-    let _ = writeln!(o, "                uniform token info:implementationSource = \"sourceAsset\"");
-    let _ = writeln!(o, "                uniform asset info:{SOURCE_TYPE}:sourceAsset = @./{}.usda@", desc.name);
-    let _ = writeln!(o, "                uniform token info:{SOURCE_TYPE}:sourceAsset:subIdentifier = \"{DEFINITION_PRIM}\"");
+    let _ = writeln!(o, "            def Shader \"GlintDbrdf\" (\n                doc = {}\n            )\n            {{", quote(&format!("glint's BRDF ({}): {}", desc.model, desc.brdf_convention)));
     for (kind, name, value) in &inputs {
         let _ = writeln!(o, "                {kind} inputs:{name} = {value}");
     }
@@ -211,6 +219,11 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
                 let st = |t: &[f32; 2]| format!("({}, {})", num32(t[0]), num32(1.0 - t[1]));
                 let _ = writeln!(o, "        texCoord2f[] primvars:st = {} (\n            interpolation = \"vertex\"\n        )", list(uv, st));
             }
+            if let Some(t) = &m.tangents {
+                let xyz = |t: &[f32; 4]| format!("({}, {}, {})", num32(t[0]), num32(t[1]), num32(t[2]));
+                let _ = writeln!(o, "        float3[] primvars:tangents = {} (\n            interpolation = \"vertex\"\n        )", list(t, xyz));
+                let _ = writeln!(o, "        float[] primvars:tangentSigns = {} (\n            interpolation = \"vertex\"\n        )", list(t, |t| num32(t[3])));
+            }
             let _ = writeln!(o, "        uniform token subdivisionScheme = \"none\"");
             let _ = writeln!(o, "    }}");
         }
@@ -222,18 +235,36 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
             let _ = writeln!(o, "    }}");
         }
     }
-    let _ = writeln!(o, "}}");
-    let _ = writeln!(o);
-    // The shader's Sdr definition, in this file so the stage is self-contained (abstract: not traversed).
-    let _ = writeln!(o, "class Shader \"{DEFINITION_PRIM}\" (\n    doc = {}\n)\n{{", quote(&format!("Sdr definition of the glint shader {GLINT_SHADER_ID} (source type '{SOURCE_TYPE}'): {}; p(h) tabulated in the 'table' asset ({PARAMETERISATION})", desc.brdf_convention)));
-    let _ = writeln!(o, "    uniform token info:implementationSource = \"sourceAsset\"");
-    let _ = writeln!(o, "    uniform asset info:{SOURCE_TYPE}:sourceAsset = @./{}@", ph_exr_file_name(&desc.name));
-    for (kind, name, _) in &inputs {
-        let _ = writeln!(o, "    {kind} inputs:{name}");
+    if let Some(camera) = scene.and_then(|s| s.camera.as_ref()) {
+        write_camera(&mut o, camera);
     }
-    let _ = writeln!(o, "    token outputs:surface");
     let _ = writeln!(o, "}}");
     Ok(o)
+}
+
+/// A `Camera` prim for glint's view: USD cameras look down −Z with +Y up, as glint's do; the
+/// transform's rows are the camera's +X, +Y, +Z and eye (USD's row-vector convention); the vertical
+/// aperture over the focal length is 2 tan(yfov/2).
+fn write_camera(o: &mut String, camera: &crate::view::SceneCamera) {
+    let (r, u, f, e) = (camera.right(), camera.up, camera.forward, camera.eye);
+    let vertical = 24.0;
+    let focal = 0.5 * vertical / (0.5 * camera.yfov_rad).tan();
+    let horizontal = vertical * camera.width as f64 / camera.height as f64;
+    let far = camera.zfar.unwrap_or(camera.znear * 1e7);
+    let _ = writeln!(o);
+    let _ = writeln!(o, "    def Camera \"{}\" (\n        doc = \"the view glint renders (docs/conventions.md section 4): {}x{} pixels, vertical field of view {:?} degrees\"\n    )\n    {{", prim_name(&format!("{}_camera", camera.name)), camera.width, camera.height, camera.yfov_rad.to_degrees());
+    let _ = writeln!(o, "        float2 clippingRange = ({}, {})", num(camera.znear), num(far));
+    let _ = writeln!(o, "        float focalLength = {}", num(focal));
+    let _ = writeln!(o, "        float horizontalAperture = {}", num(horizontal));
+    let _ = writeln!(o, "        token projection = \"perspective\"");
+    let _ = writeln!(o, "        float verticalAperture = {}", num(vertical));
+    let _ = writeln!(o, "        matrix4d xformOp:transform = ({}, {}, {}, {})", row4(r, 0.0), row4(u, 0.0), row4([-f[0], -f[1], -f[2]], 0.0), row4(e, 1.0));
+    let _ = writeln!(o, "        uniform token[] xformOpOrder = [\"xformOp:transform\"]");
+    let _ = writeln!(o, "    }}");
+}
+
+fn row4(v: [f64; 3], w: f64) -> String {
+    format!("({}, {}, {}, {})", dnum(v[0]), dnum(v[1]), dnum(v[2]), dnum(w))
 }
 
 /// Writes `<name>.usda` and the `<name>_ph.exr` it references.

@@ -22,7 +22,7 @@ fn small_merl() -> MerlTable {
 #[test]
 fn registry_lists_every_format() {
     let names: Vec<_> = registry().iter().map(|e| e.name()).collect();
-    assert_eq!(names, ["exr", "gltf", "usd", "merl"]);
+    assert_eq!(names, ["exr", "gltf", "usd", "merl", "mitsuba"]);
     for e in registry() {
         assert!(!e.extensions().is_empty());
         assert_eq!(find_exporter(e.name()).unwrap().name(), e.name());

@@ -56,6 +56,21 @@ fn glb_carries_the_fallback_and_the_exact_lobe_table() {
     let json = glb_json(&std::fs::read(dir.join("mat.glb")).unwrap());
     assert!(json.get("extensionsUsed").is_none() && json["materials"][0].get("extensions").is_none());
     assert_eq!(json["accessors"][0]["count"], 24);
+    assert!(json.get("cameras").is_none(), "no view given, no camera");
+    // With a view: a camera node whose matrix is the camera's frame (+X right, +Y up, +Z back, eye).
+    let mut mesh = scene_mesh();
+    let cam = scene_camera();
+    mesh.camera = Some(cam.clone());
+    GltfExporter.export(&iso, Some(&mesh), &dir).unwrap();
+    let json = glb_json(&std::fs::read(dir.join("mat.glb")).unwrap());
+    let p = &json["cameras"][0]["perspective"];
+    assert!((p["yfov"].as_f64().unwrap() - cam.yfov_rad).abs() < 1e-12 && p["aspectRatio"].as_f64().unwrap() == 64.0 / 48.0);
+    assert_eq!(json["scenes"][0]["nodes"], serde_json::json!([0, 1]));
+    let m: Vec<f64> = serde_json::from_value(json["nodes"][1]["matrix"].clone()).unwrap();
+    let back = [-cam.forward[0], -cam.forward[1], -cam.forward[2]];
+    for k in 0..3 {
+        assert!((m[4 + k] - cam.up[k]).abs() < 1e-12 && (m[8 + k] - back[k]).abs() < 1e-12 && (m[12 + k] - cam.eye[k]).abs() < 1e-12);
+    }
     std::fs::remove_dir_all(dir).unwrap();
 }
 
@@ -66,7 +81,8 @@ fn validate(scene: bool, anisotropic: bool) {
     if !anisotropic {
         desc.fallback.anisotropy = None;
     }
-    let mesh = scene_mesh();
+    let mut mesh = scene_mesh();
+    mesh.camera = Some(scene_camera());
     GltfExporter.export(&desc, scene.then_some(&mesh), &dir).unwrap();
     let (ok, out, err) = run(Command::new(node).arg(&script).arg(dir.join("val.glb")));
     let report: Value = serde_json::from_str(&out).unwrap_or_else(|e| panic!("no report ({e}):\n{out}\n{err}"));

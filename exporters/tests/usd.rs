@@ -18,16 +18,23 @@ fn check(scene: bool, isotropic_fallback: bool) {
     if isotropic_fallback {
         desc.fallback.anisotropy = None;
     }
-    let mesh = scene_mesh();
+    let mut mesh = scene_mesh();
+    mesh.camera = Some(scene_camera());
     let files = UsdExporter.export(&desc, scene.then_some(&mesh), &dir).unwrap();
     assert_eq!(files.len(), 2, "{files:?}");
     let mut json = desc.lobe_table_json();
     json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": desc.fallback.anisotropy });
+    if scene {
+        let c = scene_camera();
+        json["camera"] = serde_json::json!({ "eye": c.eye, "forward": c.forward, "up": c.up, "yfov_deg": c.yfov_rad.to_degrees(), "width": c.width, "height": c.height });
+    }
     let json_path = dir.join("material.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
     let script = workspace().join("exporters/python/check_usd.py");
     let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("bunny-v2.final.usda")).arg(&json_path));
     assert!(ok, "check_usd.py failed:\n{out}\n{err}");
+    // Opening, resolving and checking the stage prints nothing (usd-core's diagnostics go to stderr).
+    assert!(err.trim().is_empty(), "usd-core printed on stderr:\n{err}");
     assert!(out.contains("OK"), "{out}");
     eprintln!("{}", out.trim());
     std::fs::remove_dir_all(&dir).unwrap();

@@ -14,10 +14,9 @@ use serde::{Deserialize, Serialize};
 pub const MODEL: &str = "dbrdf-srbf";
 /// Current version of the material format.
 pub const MATERIAL_VERSION: u32 = 1;
-/// The BRDF convention, repeated in every file.
-pub const BRDF_CONVENTION: &str = "f_r(wi, wo) = rho_d/pi + p(h) s(wi, wo), without the cosine; p(h) = sum_j c_j exp(2 lambda (h.xi_j - 1)); s = F_schlick(wi.h) / (4 (k1 + k2 - k1 k2)), k1 = wi.n, k2 = wo.n";
-/// The frame convention, repeated in every file.
-pub const FRAME_CONVENTION: &str = "local frame: z = shading normal, x = tangent (glTF TANGENT, else MikkTSpace from TEXCOORD_0), y = (n x t) * tangent.w; isotropic layouts depend on h.z only";
+/// The BRDF and frame conventions repeated in every file: one definition, in the exporters crate
+/// (the exact statement is docs/conventions.md).
+pub use glint_exporters::material::{FRAME_CONVENTION, brdf_convention};
 
 /// Statistics of the fit that made the material.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -84,7 +83,7 @@ impl Material {
             rho_d,
             f0,
             frame: FRAME_CONVENTION.into(),
-            brdf_convention: BRDF_CONVENTION.into(),
+            brdf_convention: brdf_convention(lobes.layout().is_isotropic()).into(),
             fit,
         }
     }
@@ -99,6 +98,26 @@ impl Material {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
 
+    /// A material from the lobe table of a glint export (the glTF extras' or the USD shader's object,
+    /// `layout` by name, no fit statistics), validated as [`Material::parse`] validates.
+    pub fn from_lobe_table(table: &serde_json::Value) -> Result<Self, MaterialError> {
+        let mut value = table.clone();
+        let name = value.get("layout").and_then(|l| l.as_str()).ok_or_else(|| MaterialError::Invalid("the lobe table has no layout name".into()))?;
+        let layout = LobeLayout::from_name(name).ok_or_else(|| MaterialError::Invalid(format!("unknown lobe layout '{}'", name.escape_debug())))?;
+        let isotropic = value.get("isotropic").and_then(|b| b.as_bool());
+        if isotropic.is_some_and(|i| i != layout.is_isotropic()) {
+            return Err(MaterialError::Invalid(format!("'isotropic' contradicts the layout {name}")));
+        }
+        value["layout"] = serde_json::to_value(layout).map_err(|e| MaterialError::Json(e.to_string()))?;
+        if let Some(object) = value.as_object_mut() {
+            object.remove("isotropic");
+            object.insert("frame".into(), FRAME_CONVENTION.into());
+            object.insert("brdf_convention".into(), brdf_convention(layout.is_isotropic()).into());
+            object.insert("fit".into(), serde_json::to_value(FitStats { notes: vec!["read back from an export: the fit statistics are not carried".into()], ..FitStats::default() }).map_err(|e| MaterialError::Json(e.to_string()))?);
+        }
+        Self::parse(&value.to_string())
+    }
+
     /// Parses and validates a material.
     pub fn parse(text: &str) -> Result<Self, MaterialError> {
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| MaterialError::Json(e.to_string()))?;
@@ -110,7 +129,7 @@ impl Material {
             && version != MATERIAL_VERSION as u64 {
                 return Err(MaterialError::Version { found: version.min(u32::MAX as u64) as u32 });
             }
-        let m: Material = serde_json::from_value(value).map_err(|e| MaterialError::Json(e.to_string()))?;
+        let mut m: Material = serde_json::from_value(value).map_err(|e| MaterialError::Json(e.to_string()))?;
         let j = m.layout.count();
         if m.centres.len() != j || m.coefficients.iter().any(|c| c.len() != j) {
             return Err(MaterialError::Invalid(format!("layout {} needs {j} centres and 3 x {j} coefficients", m.layout.name())));
@@ -126,6 +145,10 @@ impl Material {
         if lobes.centres().iter().zip(&m.centres).any(|(a, b)| (a.x - b[0]).abs() + (a.y - b[1]).abs() + (a.z - b[2]).abs() > 1e-9) {
             return Err(MaterialError::Invalid("the centres do not match the layout".into()));
         }
+        // The convention strings are descriptive: a material written by an older glint (whose string
+        // named point lobes for every layout) is read with the exact statement for its layout.
+        m.brdf_convention = brdf_convention(m.layout.is_isotropic()).into();
+        m.frame = FRAME_CONVENTION.into();
         Ok(m)
     }
 }

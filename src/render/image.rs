@@ -95,7 +95,8 @@ impl Image {
         (n > 0 && den > 0.0).then(|| (num / den).sqrt())
     }
 
-    /// Writes `.exr` (linear f32 RGB) or `.png` (tone-mapped sRGB at `exposure`), atomically.
+    /// Writes `.exr` (linear f32 RGBA, A the coverage) or `.png` (tone-mapped sRGB at `exposure`),
+    /// atomically.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         let bytes = match ext.as_deref() {
@@ -107,13 +108,14 @@ impl Image {
         Ok(())
     }
 
-    /// The linear image as EXR bytes (f32 RGB).
+    /// The linear image as EXR bytes: f32 RGB radiance and A, the coverage (1 on object pixels, 0 on
+    /// the background), so a comparison can mask object pixels (docs/conventions.md §4).
     pub fn exr_bytes(&self) -> Result<Vec<u8>, String> {
         use exr::prelude::*;
         let w = self.width as usize;
-        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+        let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * w + x];
-            (p[0], p[1], p[2])
+            (p[0], p[1], p[2], if self.covered[y * w + x] { 1.0f32 } else { 0.0 })
         });
         let image = Image::from_channels((w, self.height as usize), channels);
         let mut out = std::io::Cursor::new(Vec::new());

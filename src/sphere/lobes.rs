@@ -46,6 +46,18 @@ impl LobeLayout {
         }
     }
 
+    /// The layout a [`LobeLayout::name`] names (`hemicube-7`, `fibonacci-64`, `isotropic-24`).
+    pub fn from_name(name: &str) -> Option<Self> {
+        let (kind, n) = name.rsplit_once('-')?;
+        let n: usize = n.parse().ok()?;
+        match kind {
+            "hemicube" => Some(LobeLayout::Hemicube { n }),
+            "fibonacci" => Some(LobeLayout::Fibonacci { count: n }),
+            "isotropic" => Some(LobeLayout::Isotropic { count: n }),
+            _ => None,
+        }
+    }
+
     /// Short name for reports and file metadata.
     pub fn name(&self) -> String {
         match *self {

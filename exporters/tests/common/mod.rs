@@ -81,8 +81,8 @@ pub fn material(name: &str, resolution: u32) -> MaterialDesc {
         coefficients,
         rho_d: [0.31, 0.22, 0.13],
         f0: 0.04,
-        brdf_convention: "f_r(wi, wo) = rho_d/pi + p(h) s(wi, wo), without the cosine".into(),
-        frame_convention: "local frame: z = shading normal, x = tangent".into(),
+        brdf_convention: glint_exporters::material::brdf_convention(false).into(),
+        frame_convention: glint_exporters::material::FRAME_CONVENTION.into(),
         provenance,
         table: PhTable::default(),
         fallback: PbrFallback { base_color: [0.31, 0.22, 0.13], metallic: 0.0, roughness: 0.23, anisotropy: Some((0.4, 0.25)), relative_error: 0.12 },
@@ -175,4 +175,20 @@ pub fn node_validator() -> Option<(PathBuf, PathBuf)> {
 pub fn run(cmd: &mut Command) -> (bool, String, String) {
     let o = cmd.output().unwrap_or_else(|e| panic!("cannot run {cmd:?}: {e}"));
     (o.status.success(), String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+/// A camera looking at the fixture mesh from +Z (what `glint export --scene` attaches).
+pub fn scene_camera() -> glint_exporters::SceneCamera {
+    let el = 0.3f64;
+    glint_exporters::SceneCamera {
+        name: "view".into(),
+        eye: [0.0, 4.0 * el.sin(), 4.0 * el.cos()],
+        forward: [0.0, -el.sin(), -el.cos()],
+        up: [0.0, el.cos(), -el.sin()],
+        yfov_rad: 40f64.to_radians(),
+        width: 64,
+        height: 48,
+        znear: 1.0,
+        zfar: Some(8.0),
+    }
 }
