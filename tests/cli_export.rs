@@ -250,3 +250,162 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
     assert_eq!(out.status.code(), Some(1));
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// A material of `layout` with coefficients of every magnitude (17 significant digits, subnormal-free
+/// tiny values, zeros), written as glint's JSON.
+fn material_of(layout: glint::sphere::LobeLayout, lambda: f64, seed: u64) -> glint::fit::material::Material {
+    let lobes = glint::sphere::LobeSet::new(layout, lambda).unwrap();
+    let mut rng = glint::math::Rng::new(seed);
+    let coefficients: [Vec<f64>; 3] = std::array::from_fn(|_| {
+        (0..lobes.len())
+            .map(|j| match j % 4 {
+                0 => 0.0,
+                1 => rng.next_f64() * 1e-200,
+                _ => rng.next_f64() * 3.0 + std::f64::consts::PI * 1e-9,
+            })
+            .collect()
+    });
+    let sigma = glint::sphere::srbf::sigma_from_lambda(lambda).unwrap();
+    glint::fit::material::Material::new(&lobes, sigma, coefficients, [0.1 + 1.0 / 3.0, 0.2, std::f64::consts::E / 10.0], 0.04 + 1e-12, Default::default())
+}
+
+/// JSON → .glb / .usda → glint gives the same lobe table, bit for bit, for every kind of layout; and
+/// `render` and `export` take the exported files as materials.
+#[test]
+fn materials_round_trip_through_glb_and_usda_for_every_layout() {
+    use glint::sphere::LobeLayout;
+    let dir = common::temp_dir("round-trip");
+    for (k, layout) in [LobeLayout::Isotropic { count: 24 }, LobeLayout::Hemicube { n: 3 }, LobeLayout::Fibonacci { count: 20 }].into_iter().enumerate() {
+        let m = material_of(layout, 81.06 + k as f64 * 7.3, 40 + k as u64);
+        let name = format!("rt{k}");
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, m.to_json()).unwrap();
+        let to = dir.join(&name);
+        let out = run_glint!(["export".as_ref(), path.as_os_str(), "--to".as_ref(), to.as_os_str(), "--formats".as_ref(), "gltf,usd".as_ref(), "--table-resolution".as_ref(), "32".as_ref()]);
+        assert!(out.status.success(), "export: {}", String::from_utf8_lossy(&out.stderr));
+        for ext in ["glb", "usda"] {
+            let back = glint::material_file::read_material(&to.join(format!("{name}.{ext}"))).unwrap_or_else(|e| panic!("{} {ext}: {e}", layout.name()));
+            assert_eq!(back.layout, m.layout, "{ext}");
+            assert_eq!(back.model, m.model);
+            assert_eq!(back.version, m.version);
+            assert_eq!(back.lambda.to_bits(), m.lambda.to_bits(), "{} {ext}: lambda", layout.name());
+            assert_eq!(back.sigma.to_bits(), m.sigma.to_bits(), "{} {ext}: sigma", layout.name());
+            assert_eq!(back.f0.to_bits(), m.f0.to_bits(), "{} {ext}: f0", layout.name());
+            assert_eq!(back.rho_d, m.rho_d, "{} {ext}: rho_d", layout.name());
+            assert_eq!(back.centres, m.centres, "{} {ext}: centres", layout.name());
+            assert_eq!(back.coefficients, m.coefficients, "{} {ext}: coefficients", layout.name());
+            assert_eq!(back.brdf_convention, m.brdf_convention);
+            // The CLI takes the export wherever it takes a material: export it again, from the export.
+            let again = dir.join(format!("{name}-{ext}"));
+            let out = run_glint!(["export".as_ref(), to.join(format!("{name}.{ext}")).as_os_str(), "--to".as_ref(), again.as_os_str(), "--formats".as_ref(), "gltf".as_ref(), "--table-resolution".as_ref(), "32".as_ref()]);
+            assert!(out.status.success(), "export from {ext}: {}", String::from_utf8_lossy(&out.stderr));
+            let g = glb_json(&again.join(format!("{name}.glb")));
+            assert_eq!(g["materials"][0]["extras"]["glint"]["coefficients"], serde_json::json!(m.coefficients), "{ext} → glb");
+        }
+        println!("{}: JSON → .glb / .usda → glint: identical lobe table (J = {})", layout.name(), m.centres.len());
+    }
+    // `render --material` takes a .usda (isotropic material on the bunny bake).
+    let (rdir, bake, _) = fitted("round-trip-render");
+    let out = run_glint!(["render".as_ref(), bake.as_os_str(), "--material".as_ref(), dir.join("rt0/rt0.usda").as_os_str(), "--size".as_ref(), "32x24".as_ref(), "--out".as_ref(), rdir.join("usd.exr").as_os_str()]);
+    assert!(out.status.success(), "render --material .usda: {}", String::from_utf8_lossy(&out.stderr));
+    std::fs::remove_dir_all(rdir).unwrap();
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// Hostile material files — truncated, wrong types, missing inputs, absurd arrays, a table path that
+/// leaves the folder, a glTF that is not a glint export — are refused with one line, exit 1, and no
+/// output.
+#[test]
+fn hostile_exported_materials_are_refused_with_one_line() {
+    use glint::sphere::LobeLayout;
+    let dir = common::temp_dir("hostile-materials");
+    let m = material_of(LobeLayout::Isotropic { count: 8 }, 40.0, 7);
+    let path = dir.join("m.json");
+    std::fs::write(&path, m.to_json()).unwrap();
+    let to = dir.join("ok");
+    assert!(run_glint!(["export".as_ref(), path.as_os_str(), "--to".as_ref(), to.as_os_str(), "--formats".as_ref(), "gltf,usd".as_ref(), "--table-resolution".as_ref(), "16".as_ref()]).status.success());
+    let glb = std::fs::read(to.join("m.glb")).unwrap();
+    let usda = std::fs::read_to_string(to.join("m.usda")).unwrap();
+    let doc = glb_json(&to.join("m.glb"));
+    let with_glint = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut d = doc.clone();
+        f(&mut d["materials"][0]["extras"]["glint"]);
+        common::pack_glb(&d, &[])
+    };
+    let huge: Vec<f64> = vec![0.5; 200_001];
+    let line = |prefix: &str| usda.lines().find(|l| l.trim_start().starts_with(prefix)).unwrap_or_else(|| panic!("no line {prefix}")).to_string();
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("truncated.glb", glb[..glb.len() / 2].to_vec(), "truncated"),
+        ("garbage.glb", b"glTF\x02\x00\x00\x00".to_vec(), "truncated GLB header"),
+        ("not-glint.glb", std::fs::read(repo().join("samples/bunny.glb")).unwrap(), "not a glint export"),
+        ("wrong-type.glb", with_glint(&|g| g["lambda"] = "81".into()), "lambda"),
+        ("missing.glb", with_glint(&|g| drop(g.as_object_mut().unwrap().remove("coefficients"))), "coefficients"),
+        ("absurd.glb", with_glint(&|g| g["coefficients"][0] = serde_json::json!(huge)), "coefficients"),
+        ("escape.glb", with_glint(&|g| g["table"]["uri"] = "../../outside_ph.exr".into()), "leaves the material's folder"),
+        ("absolute.glb", with_glint(&|g| g["table"]["uri"] = "/etc/m_ph.exr".into()), "leaves the material's folder"),
+        ("truncated.usda", usda.as_bytes()[..usda.len() / 3].to_vec(), "USD parse error"),
+        ("wrong-type.usda", usda.replace(&line("double inputs:lambda"), "string inputs:lambda = \"81\"").into_bytes(), "wrong type"),
+        ("missing.usda", usda.replace(&line("double inputs:f0"), "").into_bytes(), "inputs:f0"),
+        ("absurd.usda", usda.replace(&line("double[] inputs:coefficients_r"), &format!("double[] inputs:coefficients_r = {huge:?}")).into_bytes(), "more than the 100000"),
+        ("escape.usda", usda.replace("@./m_ph.exr@", "@../../../etc/passwd@").into_bytes(), "leaves the material's folder"),
+        ("binary.usda", b"PXR-USDC\x00\x00".to_vec(), "not a USD text layer"),
+    ];
+    for (name, bytes, needle) in cases {
+        let bad = dir.join(name);
+        std::fs::write(&bad, bytes).unwrap();
+        let out_dir = dir.join(format!("out-{name}"));
+        let out = run_glint!(["export".as_ref(), bad.as_os_str(), "--to".as_ref(), out_dir.as_os_str(), "--formats".as_ref(), "exr".as_ref()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{name}: {err}");
+        assert!(err.contains(needle), "{name}: expected '{needle}' in: {err}");
+        assert!(!out_dir.exists() || std::fs::read_dir(&out_dir).unwrap().next().is_none(), "{name}: wrote output");
+        println!("{name}: {}", err.trim());
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// `glint render --json` prints the camera (docs/conventions.md §4) and the EXR's alpha is the
+/// coverage; `glint export --formats mitsuba --bake` writes the scene, and its sensor is that camera.
+#[test]
+fn render_prints_its_camera_and_mitsuba_export_uses_it() {
+    let (dir, bake, material) = fitted("render-camera");
+    let exr = dir.join("mc.exr");
+    let out = run_glint!(["render".as_ref(), bake.as_os_str(), "--material".as_ref(), material.as_os_str(), "--reference".as_ref(), "2".as_ref(), "--orbit".as_ref(), "20,15,2.5".as_ref(), "--size".as_ref(), "48x36".as_ref(), "--out".as_ref(), exr.as_os_str(), "--json".as_ref()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cam = &report["camera"];
+    assert_eq!((cam["width"].as_u64(), cam["height"].as_u64(), cam["name"].as_str()), (Some(48), Some(36), Some("orbit")));
+    assert!((cam["yfov_deg"].as_f64().unwrap() - 40.0).abs() < 1e-4);
+    // Orbit 20° azimuth, 15° elevation: the camera looks back along (cos el sin az, sin el, cos el cos az).
+    let (az, el) = (20f64.to_radians(), 15f64.to_radians());
+    let dir_out = [el.cos() * az.sin(), el.sin(), el.cos() * az.cos()];
+    let fwd: Vec<f64> = serde_json::from_value(cam["forward"].clone()).unwrap();
+    for k in 0..3 {
+        assert!((fwd[k] + dir_out[k]).abs() < 1e-5, "forward {fwd:?} vs {dir_out:?}");
+    }
+    // Alpha: 1 on exactly the object pixels the report counts, 0 elsewhere.
+    let image = exr::prelude::read_first_rgba_layer_from_file(&exr, |r, _| vec![[0f32; 4]; r.width() * r.height()], |px: &mut Vec<[f32; 4]>, p, (r, g, b, a): (f32, f32, f32, f32)| px[p.y() * 48 + p.x()] = [r, g, b, a]).unwrap();
+    let pixels = &image.layer_data.channel_data.pixels;
+    let covered = pixels.iter().filter(|p| p[3] == 1.0).count();
+    assert!(pixels.iter().all(|p| p[3] == 0.0 || p[3] == 1.0));
+    assert_eq!(covered as u64, report["object_pixels"].as_u64().unwrap());
+
+    // The Mitsuba scene for the same view.
+    let to = dir.join("mitsuba");
+    let out = run_glint!(["export".as_ref(), material.as_os_str(), "--to".as_ref(), to.as_os_str(), "--formats".as_ref(), "mitsuba".as_ref(), "--bake".as_ref(), bake.as_os_str(), "--orbit".as_ref(), "20,15,2.5".as_ref(), "--size".as_ref(), "48x36".as_ref(), "--rotate".as_ref(), "90".as_ref()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for n in ["shiny_mitsuba.xml", "shiny_mesh.ply", "shiny_env.exr", "shiny_ph.exr", "shiny_lobes.json"] {
+        assert!(to.join(n).is_file(), "{n}");
+    }
+    let xml = std::fs::read_to_string(to.join("shiny_mitsuba.xml")).unwrap();
+    let eye: Vec<f64> = serde_json::from_value(cam["eye"].clone()).unwrap();
+    assert!(xml.contains(&format!("origin=\"{:?}, {:?}, {:?}\"", eye[0], eye[1], eye[2])), "{xml}");
+    assert!(xml.contains("<integer name=\"width\" value=\"48\"/>") && xml.contains("angle=\"90.0\""), "{xml}");
+    // A Mitsuba scene needs a scene and an environment: one line, exit 1.
+    let out = run_glint!(["export".as_ref(), material.as_os_str(), "--to".as_ref(), dir.join("no-scene").as_os_str(), "--formats".as_ref(), "mitsuba".as_ref()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.trim().lines().count() == 1 && err.contains("mitsuba"), "{err}");
+    std::fs::remove_dir_all(dir).unwrap();
+}

@@ -113,6 +113,27 @@ fn lobe_fields(path: &Path, g: &Value) -> Result<Value, ExportError> {
     if coefficients.len() != 3 || coefficients.iter().any(|c| c.as_array().is_none_or(|c| c.len() != centres.len())) {
         return Err(bad(path, format!("'coefficients' must be 3 arrays of {} numbers (one per centre)", centres.len())));
     }
+    let numbers = |v: &Value, n: Option<usize>| v.as_array().is_some_and(|a| n.is_none_or(|n| a.len() == n) && a.iter().all(Value::is_number));
+    for key in ["lambda", "sigma", "f0"] {
+        if !get(key)?.is_number() {
+            return Err(bad(path, format!("'{key}' is not a number")));
+        }
+    }
+    if !get("version")?.is_u64() {
+        return Err(bad(path, "'version' is not a non-negative integer"));
+    }
+    if !get("layout")?.is_string() || !get("isotropic")?.is_boolean() {
+        return Err(bad(path, "'layout' must be a string and 'isotropic' a boolean"));
+    }
+    if !numbers(get("rho_d")?, Some(3)) {
+        return Err(bad(path, "'rho_d' is not 3 numbers"));
+    }
+    if !centres.iter().all(|c| numbers(c, Some(3))) {
+        return Err(bad(path, "'centres' must hold 3 numbers per centre"));
+    }
+    if !coefficients.iter().all(|c| numbers(c, None)) {
+        return Err(bad(path, "'coefficients' must hold numbers"));
+    }
     let mut out = serde_json::Map::new();
     for key in ["model", "version", "lambda", "sigma", "layout", "isotropic", "centres", "coefficients", "rho_d", "f0"] {
         out.insert(key.into(), get(key)?.clone());
