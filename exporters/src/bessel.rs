@@ -8,7 +8,7 @@
 //! precision there).
 //!
 //! Defined here, in the file-format crate, because its reference evaluator of the exported BRDF
-//! ([`crate::brdf`]) needs it and this crate cannot depend on `glint`; `glint::math` re-exports it and
+//! ([`crate::brdf`]) needs it and this crate cannot depend on `glint`; glint's `math` module re-exports it and
 //! tests it against the integral representation.
 
 /// e^(-|x|) I0(x).

@@ -1,6 +1,8 @@
 """``python -m glint_mitsuba render SCENE.xml --out OUT.exr [--spp N] [--variant V] [--seed S]
 [--lambertian]``: renders a scene written by ``glint export --formats mitsuba`` and writes a linear
-RGBA float EXR (A = coverage); prints one JSON line. Errors: one line on stderr, exit status 1."""
+RGBA float EXR (A = coverage); prints one JSON line. ``python -m glint_mitsuba bench SCENE.xml``: time
+and noise at equal spp against ``roughconductor`` (see ``bench.py``). Errors: one line on stderr, exit
+status 1."""
 
 from __future__ import annotations
 
@@ -33,6 +35,11 @@ def _parser():
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--lambertian", action="store_true",
                    help="replace every glint BSDF by its Lambertian copy (rho_d only)")
+    b = sub.add_parser("bench", help="time and noise at equal spp: glint BSDF vs roughconductor (Markdown)")
+    b.add_argument("scene")
+    b.add_argument("--spp", default="16,64", help="comma-separated sample counts")
+    b.add_argument("--seeds", type=int, default=3)
+    b.add_argument("--alpha", type=float, default=0.11)
     return p
 
 
@@ -100,8 +107,16 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     try:
         args = _parser().parse_args(argv)
+        if args.command == "bench":
+            from glint_mitsuba import bench
+
+            spps = tuple(int(s) for s in args.spp.split(","))
+            if not spps or min(spps) < 1 or args.seeds < 1:
+                raise _UsageError("--spp takes positive counts and --seeds at least 1")
+            print(bench.run(args.scene, spps, args.seeds, args.alpha))
+            return 0
         if args.command != "render":
-            raise _UsageError("expected the command 'render' (python -m glint_mitsuba render SCENE.xml --out OUT.exr)")
+            raise _UsageError("expected the command 'render' or 'bench' (python -m glint_mitsuba render SCENE.xml --out OUT.exr)")
         info = render(args.scene, args.out, args.spp, args.variant, args.seed, args.lambertian)
     except SystemExit:
         raise
