@@ -100,11 +100,12 @@ fn export_writes_every_format_and_independent_readers_agree() {
         assert!(!name.ends_with(".tmp"), "leftover {name}");
     }
 
-    // usd-core: validation and every number against the material JSON.
+    // usd-core: validation and every number against the material JSON, with nothing on stderr.
     if let Some(py) = tool(repo().join(".venv/bin/python"), "python venv with usd-core") {
         let o = Command::new(py).arg(repo().join("exporters/python/check_usd.py")).arg(to.join("shiny.usda")).arg(&material).output().unwrap();
         let text = String::from_utf8_lossy(&o.stdout);
         assert!(o.status.success(), "check_usd: {text}{}", String::from_utf8_lossy(&o.stderr));
+        assert!(o.stderr.is_empty(), "usd-core printed on stderr: {}", String::from_utf8_lossy(&o.stderr));
         println!("{}", text.trim());
     }
     // gltf-validator: 0 errors and 0 warnings.
@@ -350,6 +351,38 @@ fn hostile_exported_materials_are_refused_with_one_line() {
         ("escape.usda", usda.replace("@./m_ph.exr@", "@../../../etc/passwd@").into_bytes(), "leaves the material's folder"),
         ("binary.usda", b"PXR-USDC\x00\x00".to_vec(), "not a USD text layer"),
     ];
+    // Random damage never panics: every mutant is read or refused (in-process, so a panic fails here).
+    let mut rng = glint::math::Rng::new(11);
+    for (ext, good) in [("glb", glb.clone()), ("usda", usda.as_bytes().to_vec())] {
+        let (mut read, mut refused) = (0, 0);
+        for k in 0..300 {
+            let mut bytes = good.clone();
+            match k % 3 {
+                0 => bytes.truncate((rng.next_f64() * bytes.len() as f64) as usize),
+                1 => {
+                    for _ in 0..1 + k % 7 {
+                        let at = (rng.next_f64() * bytes.len() as f64) as usize % bytes.len();
+                        bytes[at] = (rng.next_f64() * 256.0) as u8;
+                    }
+                }
+                _ => {
+                    let at = (rng.next_f64() * bytes.len() as f64) as usize % bytes.len();
+                    let len = ((rng.next_f64() * 64.0) as usize).min(bytes.len() - at);
+                    bytes.drain(at..at + len);
+                }
+            }
+            let p = dir.join(format!("mutant.{ext}"));
+            std::fs::write(&p, &bytes).unwrap();
+            match glint::material_file::read_material(&p) {
+                Ok(_) => read += 1,
+                Err(e) => {
+                    assert!(!e.to_string().contains('\n'), "{e}");
+                    refused += 1;
+                }
+            }
+        }
+        println!("{ext}: 300 damaged copies, {read} still read, {refused} refused, no panic");
+    }
     for (name, bytes, needle) in cases {
         let bad = dir.join(name);
         std::fs::write(&bad, bytes).unwrap();

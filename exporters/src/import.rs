@@ -147,7 +147,9 @@ fn from_usda(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
     if !text.starts_with("#usda 1.0") {
         return Err(bad(path, "not a USD text layer (it must start with '#usda 1.0')"));
     }
-    let data = openusd::usda::parse(text).map_err(|e| bad(path, format!("USD parse error: {}", format!("{e:#}").lines().next().unwrap_or(""))))?;
+    // The parser is a third party's: a panic in it on hostile text is reported as a refusal.
+    let parsed = std::panic::catch_unwind(|| openusd::usda::parse(text)).map_err(|_| bad(path, "USD parse error: the parser failed on this text"))?;
+    let data = parsed.map_err(|e| bad(path, format!("USD parse error: {}", format!("{e:#}").lines().next().unwrap_or(""))))?;
     let mut shader: Option<String> = None;
     for (p, spec) in data.iter() {
         if spec.ty == sdf::SpecType::Attribute
