@@ -8,6 +8,7 @@
 //! Stages are free functions over plain data; IO lives only in the importers and at the CLI edge.
 //! See `ARCHITECTURE.md` for the code map and the invariants.
 
+pub mod accuracy;
 #[cfg(feature = "gui")]
 pub mod app;
 pub mod bake;

@@ -264,8 +264,18 @@ struct StudyArgs {
     #[arg(long, default_value = "samples/strokes/bunny-highlight.json")]
     strokes: PathBuf,
     /// Fewer settings, an 80×60 frame and a 256-spp truth: minutes → well under 2 minutes (for CI).
+    /// With --matrix: the bunny and the brushed sphere under the studio map, at 64×48 and 1024 spp.
     #[arg(long)]
     quick: bool,
+    /// The accuracy matrix instead: the PRT frame against the Monte Carlo reference over meshes
+    /// (bunny, teapot, suzanne, a patch of dragon_100k, the brushed sphere) × maps (studio,
+    /// courtyard, interior) × views (default, orbit, grazing) × rotations (0°, 90°) × materials
+    /// (sharp, broad, anisotropic where the mesh has tangents); writes matrix.md and matrix.csv.
+    #[arg(long)]
+    matrix: bool,
+    /// Where the matrix finds dragon_100k.glb (glb/) and interior_1k.exr (hdr/).
+    #[arg(long, default_value = "../shared/assets")]
+    assets: PathBuf,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -830,8 +840,66 @@ fn camera_json(c: &glint_exporters::SceneCamera) -> serde_json::Value {
     })
 }
 
+/// `glint study --matrix`: the accuracy matrix (src/accuracy.rs), written as matrix.md and matrix.csv.
+fn study_matrix(args: &StudyArgs) -> Result<()> {
+    use glint::accuracy::{self, MatrixOptions};
+    let samples = samples_dir();
+    let need = |p: PathBuf| -> Result<PathBuf> {
+        if p.is_file() { Ok(p) } else { anyhow::bail!("the accuracy matrix needs {} (see --assets)", p.display()) }
+    };
+    let mut meshes: Vec<(String, PathBuf, Option<f32>)> = vec![("bunny".into(), need(samples.join("bunny.glb"))?, None)];
+    if !args.quick {
+        meshes.push(("teapot".into(), need(samples.join("teapot.glb"))?, None));
+        meshes.push(("suzanne".into(), need(samples.join("suzanne.glb"))?, None));
+        meshes.push(("dragon_100k patch".into(), need(args.assets.join("glb/dragon_100k.glb"))?, Some(0.3)));
+    }
+    meshes.push(("brushed sphere".into(), need(samples.join("brushed_sphere.glb"))?, None));
+    let mut maps = vec![("studio".to_string(), need(samples.join("studio_1k.exr"))?)];
+    if !args.quick {
+        maps.push(("courtyard".into(), need(samples.join("courtyard_1k.exr"))?));
+        maps.push(("interior".into(), need(args.assets.join("hdr/interior_1k.exr"))?));
+    }
+    let mut scenes = Vec::new();
+    for (name, path, fraction) in meshes {
+        let mut scene = glint::scene::import(&path)?;
+        if let Some(f) = fraction {
+            scene.mesh = glint::accuracy::patch(&scene.mesh, f);
+            scene.bounds = glint::scene::Bounds::from_points(&scene.mesh.positions).ok_or_else(|| anyhow::anyhow!("{}: the patch is empty", path.display()))?;
+        }
+        scenes.push((name, scene));
+    }
+    let envs = maps.into_iter().map(|(n, p)| Ok((n, glint::env::load(&p)?))).collect::<Result<Vec<_>>>()?;
+    let options = if args.quick { MatrixOptions::QUICK } else { MatrixOptions::FULL };
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(indicatif::ProgressStyle::with_template("matrix {bar:30} {pos}/{len} {msg}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+    let start = std::time::Instant::now();
+    let rows = accuracy::run(&scenes, &envs, options, &|done, total, what| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(what.to_string());
+    })?;
+    bar.finish_and_clear();
+    let title = format!(
+        "glint accuracy matrix: PRT frame vs Monte Carlo reference, {}x{}, {} spp{} — {} cases, {:.0} s on {} threads",
+        options.size.0, options.size.1, options.spp, if args.quick { " (quick)" } else { "" }, rows.len(), start.elapsed().as_secs_f64(), rayon::current_num_threads()
+    );
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    for (name, text) in [("matrix.md", accuracy::markdown(&rows, &title)), ("matrix.csv", accuracy::csv(&rows))] {
+        let p = args.out.join(name);
+        glint_exporters::write_atomic(&p, text.as_bytes())?;
+        println!("wrote {}", p.display());
+    }
+    let ok = rows.iter().filter(|r| r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)).count();
+    let worst = rows.iter().max_by(|a, b| a.rel_rmse.total_cmp(&b.rel_rmse));
+    println!("{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}", rows.len(), worst.map(|r| format!("; worst {:.2} %: {} under {}, {}, {}°, {}", 100.0 * r.rel_rmse, r.mesh, r.map, r.view, r.rotation_deg, r.material)).unwrap_or_default());
+    Ok(())
+}
+
 /// `glint demo`: the headless main job on the bundled sample.
 fn study(args: &StudyArgs) -> Result<()> {
+    if args.matrix {
+        return study_matrix(args);
+    }
     let scene = glint::scene::import(&args.scene)?;
     let env = glint::env::load(&args.env)?;
     let text = std::fs::read_to_string(&args.strokes).with_context(|| format!("reading {}", args.strokes.display()))?;

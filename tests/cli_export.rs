@@ -471,7 +471,7 @@ fn mesh_glb(mesh: &glint::scene::Mesh) -> Vec<u8> {
     let idx: Vec<u8> = mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
     let indices = push(idx, mesh.triangles.len() * 3, "SCALAR", 5125, None);
     let doc = serde_json::json!({
-        "asset": { "version": "2.0" },
+        "asset": { "version": "2.0", "generator": "glint tests/cli_export.rs (write_brushed_sphere)", "copyright": "CC0-1.0 (generated)" },
         "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
         "meshes": [{ "primitives": [{ "attributes": attributes, "indices": indices }] }],
         "accessors": accessors, "bufferViews": views, "buffers": [{ "byteLength": bin.len() }],
@@ -501,6 +501,22 @@ fn tangent_scene() -> glint::scene::Mesh {
         }
     }
     m
+}
+
+/// `samples/brushed_sphere.glb` is what [`tangent_scene`] makes (regenerate it with the ignored
+/// `write_brushed_sphere`).
+#[test]
+fn brushed_sphere_sample_matches_its_generator() {
+    let on_disk = std::fs::read(repo().join("samples/brushed_sphere.glb")).expect("samples/brushed_sphere.glb (run write_brushed_sphere)");
+    assert!(on_disk == mesh_glb(&tangent_scene()), "samples/brushed_sphere.glb differs from its generator (run write_brushed_sphere)");
+    let scene = glint::scene::import(&repo().join("samples/brushed_sphere.glb")).unwrap();
+    assert!(scene.mesh.tangents.is_some(), "the sample carries TANGENT");
+}
+
+#[test]
+#[ignore = "writes samples/brushed_sphere.glb; run by hand: cargo test --test cli_export -- --ignored write_brushed_sphere"]
+fn write_brushed_sphere() {
+    std::fs::write(repo().join("samples/brushed_sphere.glb"), mesh_glb(&tangent_scene())).unwrap();
 }
 
 /// (relative RMSE, object pixels, mean ratio a/b) of two RGBA EXRs over the pixels both cover
@@ -566,10 +582,9 @@ fn mitsuba_renders_exported_scenes_as_glint_does() {
     lambertian.rho_d = [0.7, 0.55, 0.4];
     let lambertian_path = dir.join("lambertian.json");
     std::fs::write(&lambertian_path, lambertian.to_json()).unwrap();
-    // (c): an anisotropic highlight stretched along the tangent, on a sphere over a ground square.
-    let scene_glb = dir.join("tangent_scene.glb");
-    std::fs::write(&scene_glb, mesh_glb(&tangent_scene())).unwrap();
-    let sphere = bake("sphere", &scene_glb);
+    // (c): an anisotropic highlight stretched along the tangent, on the brushed-sphere sample (a UV
+    // sphere whose tangents follow +φ, over a ground square).
+    let sphere = bake("sphere", &repo().join("samples/brushed_sphere.glb"));
     let lobes = LobeSet::new(LobeLayout::Hemicube { n: 5 }, 40.0).unwrap();
     let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [1.2, 1.0, 0.8][ch] * (-(x.x / 0.6).powi(2) - (x.y / 0.15).powi(2)).exp()).collect());
     let aniso = glint::fit::material::Material::new(&lobes, glint::sphere::srbf::sigma_from_lambda(40.0).unwrap(), coefficients, [0.15, 0.12, 0.1], 0.3, Default::default());

@@ -31,8 +31,13 @@ fn case(mesh: &str, env: &str) -> Case {
 
 /// With `refined`, baked as `glint bake` does: the mesh refined where visibility changes (decision (e)).
 fn case_with(mesh: &str, env: &str, refined: bool) -> Case {
-    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-    let env = glint::env::load(&common::assets().join(format!("hdr/small/{env}.exr"))).unwrap();
+    case_at(&common::assets().join(format!("glb/{mesh}.glb")), &common::assets().join(format!("hdr/small/{env}.exr")), refined)
+}
+
+/// [`case_with`] for a scene and an environment given by path.
+fn case_at(mesh: &std::path::Path, env: &std::path::Path, refined: bool) -> Case {
+    let scene = glint::scene::import(mesh).unwrap();
+    let env = glint::env::load(env).unwrap();
     let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
     let bake = if refined { baker.bake_refined(None, &|_| {}) } else { baker.bake_all(None, &|_| {}) };
     let offset = baker.ray_offset();
@@ -435,4 +440,205 @@ fn refine_study() {
             prt.relative_rmse(&mc).unwrap(),
         );
     }
+}
+
+/// Object pixels of `image` with a background 4-neighbour (or on the image's border).
+fn silhouette_pixels(image: &glint::render::Image) -> Vec<bool> {
+    let (w, h) = (image.width as i64, image.height as i64);
+    let covered = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h && image.covered[(y * w + x) as usize];
+    (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            covered(x, y) && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| !covered(x + dx, y + dy))
+        })
+        .collect()
+}
+
+/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with `None`).
+fn rmse_where(a: &glint::render::Image, b: &glint::render::Image, mask: Option<&[bool]>) -> f64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for k in 0..a.pixels.len() {
+        if a.covered[k] && b.covered[k] && mask.is_none_or(|m| m[k]) {
+            for c in 0..3 {
+                let (x, y) = (a.pixels[k][c] as f64, b.pixels[k][c] as f64);
+                num += (x - y) * (x - y);
+                den += y * y;
+            }
+        }
+    }
+    (num / den).sqrt()
+}
+
+/// One sharp ring lobe along the normal (isotropic-24 at the paper's σ, λ = 81, only θ_j = 0 set,
+/// scaled to a directional albedo of at most 0.9), ρd = 0.05, F0 = 0.04.
+fn one_sharp_lobe() -> glint::fit::material::Material {
+    use glint::sphere::srbf::{PAPER_SIGMA, lambda_from_sigma};
+    let lobes = glint::sphere::LobeSet::new(glint::sphere::LobeLayout::Isotropic { count: 24 }, lambda_from_sigma(PAPER_SIGMA).unwrap()).unwrap();
+    let mut c = vec![0.0; lobes.len()];
+    c[0] = 1.0;
+    let albedo = glint::brdf::energy::EnergyTable::cached(&lobes).albedo(&c, 0.04).into_iter().fold(0.0, f64::max);
+    c[0] = 0.9 / albedo;
+    glint::fit::material::Material::new(&lobes, PAPER_SIGMA, [c.clone(), c.clone(), c], [0.05; 3], 0.04, Default::default())
+}
+
+/// PRT (default settings, tabulated p) and Monte Carlo images of `m` for a case, a camera and a
+/// rotation, the reference on the mesh as imported (`imported`).
+struct Pair {
+    prt: glint::render::Image,
+    mc: glint::render::Image,
+    prt_secs: f64,
+    mc_secs: f64,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn prt_and_mc(c: &Case, imported: &glint::scene::Mesh, m: &glint::fit::material::Material, camera: &glint::scene::Camera, rotation_deg: f64, w: u32, h: u32, spp: u32, settings: PrtSettings) -> Pair {
+    let lobes = m.lobes().unwrap();
+    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let rotation = rotation_deg.to_radians();
+    let light = LightSums::new(&c.env, &c.set, &c.tree, rotation);
+    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let t0 = std::time::Instant::now();
+    let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+    let prt_secs = t0.elapsed().as_secs_f64();
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(imported);
+    let tracer = glint::bake::Tracer::new(imported);
+    let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+    let t0 = std::time::Instant::now();
+    let mc = render_reference(imported, tangents.as_deref(), &tracer, c.baker_offset, &c.env, rotation, material, camera, w, h, spp, 7);
+    Pair { prt: img, mc, prt_secs, mc_secs: t0.elapsed().as_secs_f64() }
+}
+
+/// Developer tool (not run by CI): issue 28's case (bunny under samples/studio_1k, orbit 20,15,2.5,
+/// environment turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a
+/// time, and its worst pixels. `cargo test --test render sharp_lobe_diagnose -- --ignored --nocapture`
+/// (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
+#[test]
+#[ignore]
+fn sharp_lobe_diagnose() {
+    let var = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let mesh = var("MESH", "bunny");
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let t0 = std::time::Instant::now();
+    let c = case_at(&samples.join(format!("{mesh}.glb")), &samples.join("studio_1k.exr"), true);
+    println!("bake {:.1} s, {} vertices", t0.elapsed().as_secs_f64(), c.scene.mesh.positions.len());
+    let imported = glint::scene::import(&samples.join(format!("{mesh}.glb"))).unwrap().mesh;
+    let m = one_sharp_lobe();
+    let (w, h) = (160, 120);
+    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5").split(',').map(|x| x.parse().unwrap()).collect();
+    let camera = if orbit.len() == 3 { glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h) } else { c.scene.cameras[0].clone() };
+    let rot: f64 = var("ROT", "90").parse().unwrap();
+    let spp: u32 = var("SPP", "2048").parse().unwrap();
+    let base = prt_and_mc(&c, &imported, &m, &camera, rot, w, h, spp, PrtSettings::default());
+    let mc = &base.mc;
+    let sil = silhouette_pixels(mc);
+    println!("MC {:.1} s ({spp} spp), PRT {:.3} s; {} object pixels, {} silhouette", base.mc_secs, base.prt_secs, mc.covered_count(), sil.iter().filter(|&&s| s).count());
+    let report = |label: &str, img: &glint::render::Image| {
+        let (all, s) = (rmse_where(img, mc, None), rmse_where(img, mc, Some(&sil)));
+        let interior: Vec<bool> = sil.iter().map(|x| !x).collect();
+        println!("{label:>36}: object {:.2} %, silhouette {:.2} %, interior {:.2} %", 100.0 * all, 100.0 * s, 100.0 * rmse_where(img, mc, Some(&interior)));
+    };
+    report("default", &base.prt);
+    if std::env::var("NOISE").is_ok() {
+        let (_, tangents, _) = glint::bake::decisions::decide_frames(&imported);
+        let lobes = m.lobes().unwrap();
+        let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+        let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+        let mc2 = render_reference(&imported, tangents.as_deref(), &glint::bake::Tracer::new(&imported), c.baker_offset, &c.env, rot.to_radians(), material, &camera, w, h, spp, 8);
+        println!("MC noise (one image): object {:.2} %, silhouette {:.2} %", 100.0 * rmse_where(&mc2, mc, None) / 2f64.sqrt(), 100.0 * rmse_where(&mc2, mc, Some(&sil)) / 2f64.sqrt());
+    }
+    let lobes = m.lobes().unwrap();
+    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
+    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let d = PrtSettings::default();
+    let variants = [
+        ("exact lobes", d, true),
+        ("no grazing tiers", PrtSettings { grazing_tiers: false, ..d }, false),
+        ("no prefilter", PrtSettings { prefilter: false, ..d }, false),
+        ("per run", PrtSettings { merge_runs: false, ..d }, false),
+        ("texel lookups", PrtSettings { texel_lookups: true, ..d }, false),
+        ("partition 4°", PrtSettings { partition_deg: 4.0, ..d }, false),
+        ("partition 2°", PrtSettings { partition_deg: 2.0, ..d }, false),
+        ("partition 1°", PrtSettings { partition_deg: 1.0, ..d }, false),
+        ("partition 1° no prefilter", PrtSettings { partition_deg: 1.0, prefilter: false, ..d }, false),
+        ("horizon leaves 1", PrtSettings { horizon_leaves: 1, ..d }, false),
+        ("vertex shading", PrtSettings { per_pixel: false, max_edge_px: 0.0, ..d }, false),
+    ];
+    let mut images = Vec::new();
+    for (label, settings, exact) in variants {
+        let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
+        let specular = if exact { Specular::Exact { lobes: &lobes, coefficients } } else { Specular::Table(&table) };
+        let img = prt.render(&light, &camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular });
+        report(label, &img);
+        images.push((label, img));
+    }
+    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+    let t = ctx.compute(&light, &camera, w, h, m.f0);
+    let mut transfer = glint::render::Image::new(w, h);
+    for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
+        transfer.set(p.x, p.y, v.map(|x| x as f32));
+    }
+    report("per-pixel transfer (tiers)", &transfer);
+    // The worst pixels, with their view cosine.
+    let eye = camera.eye();
+    let mut rows: Vec<(f64, usize, f64)> = t
+        .pixels
+        .iter()
+        .map(|p| {
+            let k = (p.y * w + p.x) as usize;
+            let wo_z = (eye - p.position).normalize().dot(p.normal) as f64;
+            (((base.prt.pixels[k][1] - mc.pixels[k][1]) as f64).powi(2), k, wo_z)
+        })
+        .collect();
+    rows.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let total: f64 = rows.iter().map(|r| r.0).sum();
+    let mut by_cos = [0.0f64; 5];
+    for r in &rows {
+        by_cos[[0.05, 0.15, 0.3, 0.6, 2.0].iter().position(|&b| r.2 < b).unwrap()] += r.0 / total;
+    }
+    println!("share of the squared error (G) by wo·n: <0.05 {:.2}, <0.15 {:.2}, <0.3 {:.2}, <0.6 {:.2}, ≥0.6 {:.2}", by_cos[0], by_cos[1], by_cos[2], by_cos[3], by_cos[4]);
+    for r in rows.iter().take(12) {
+        let k = r.1;
+        let g = |img: &glint::render::Image| img.pixels[k][1];
+        let vals: Vec<String> = images.iter().map(|(l, img)| format!("{l} {:.3}", g(img))).collect();
+        println!("pixel ({}, {}) wo·n {:.3} sil {}: MC {:.3} PRT {:.3} transfer {:.3} | {}", k % w as usize, k / w as usize, r.2, sil[k], g(mc), g(&base.prt), g(&transfer), vals.join(", "));
+    }
+}
+
+/// Issue 28: a sharp lobe seen at grazing angles. The bunny under samples/studio_1k, orbit 20,15,2.5,
+/// the environment turned 90°, one sharp ring lobe along n ([`one_sharp_lobe`]); the PRT frame (per
+/// pixel, the default) against the Monte Carlo reference over object pixels and over silhouette pixels
+/// (object pixels with a background 4-neighbour). With one 8° partition for every point and the
+/// pre-filter's geometric-mean spread the frame was 28.8 % off (silhouette 41.1 %); the peak-matched
+/// spread alone 17.9 % (25.5 %, the "one partition" row printed here); with the grazing tiers 5.9 %
+/// (8.2 %), 2026-12, which include the reference's own noise (2.2 % at 2048 spp). Not the issue's
+/// goal (2 % / 4 %): with every point at 1° partitions the floor is still 5.9 %, so what remains is
+/// not the partition (`sharp_lobe_diagnose` switches one ingredient at a time).
+#[test]
+fn sharp_lobe_at_grazing_views_against_monte_carlo() {
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let c = case_at(&samples.join("bunny.glb"), &samples.join("studio_1k.exr"), true);
+    let imported = glint::scene::import(&samples.join("bunny.glb")).unwrap().mesh;
+    let m = one_sharp_lobe();
+    let (w, h) = (160, 120);
+    let camera = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
+    let pair = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 2048, PrtSettings::default());
+    let old = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 1, PrtSettings { grazing_tiers: false, ..PrtSettings::default() });
+    let sil = silhouette_pixels(&pair.mc);
+    let (object, silhouette) = (rmse_where(&pair.prt, &pair.mc, None), rmse_where(&pair.prt, &pair.mc, Some(&sil)));
+    let (old_object, old_silhouette) = (rmse_where(&old.prt, &pair.mc, None), rmse_where(&old.prt, &pair.mc, Some(&sil)));
+    println!(
+        "sharp lobe, orbit: {} object pixels, {} silhouette; PRT {:.3} s (one partition {:.3} s), MC {:.1} s; PRT vs MC: object {:.2} %, silhouette {:.2} % (one partition: {:.2} %, {:.2} %)",
+        pair.mc.covered_count(),
+        sil.iter().filter(|&&s| s).count(),
+        pair.prt_secs,
+        old.prt_secs,
+        pair.mc_secs,
+        100.0 * object,
+        100.0 * silhouette,
+        100.0 * old_object,
+        100.0 * old_silhouette
+    );
+    assert!(object <= 0.065 && silhouette <= 0.09, "PRT vs MC: object {object}, silhouette {silhouette}");
 }

@@ -15,6 +15,9 @@
 //! - p̃ = p pre-filtered by that spread in half-vector space ([`PhTable::lookup_filtered`]), so coarse
 //!   runs do not alias sharp lobes; `prefilter: false` evaluates p at ω_run alone. Isotropic tables are
 //!   read from their polar profiles ([`PhTable::lookup_profile_filtered`]) unless `texel_lookups`.
+//!   Shaded per pixel, the spread is the ellipse's peak-matched one ([`half_vector_spread`]) and points
+//!   seen at grazing angles use finer partitions ([`GRAZING_TIERS`]); the vertex modes keep the wgpu
+//!   preview's geometric-mean spread and one partition.
 //!
 //! With `merge_runs` (the default) the runs of one render-partition node are summed first — Σ V·P,
 //! Σ V·moment and Σ V·power — and the BRDF is evaluated once per node at that visible light's direction
@@ -81,6 +84,11 @@ pub struct PrtSettings {
     /// split a node into many small runs; the BRDF does not need them (the node is what its angle
     /// resolves). Off: once per run, as the wgpu preview does.
     pub merge_runs: bool,
+    /// With `per_pixel`: points seen at grazing angles are summed over finer render partitions
+    /// ([`GRAZING_TIERS`]): a lobe σ wide in half-vector space covers only about 2σ·(wo·h) of wi across
+    /// the plane of wi and wo, far less than a node of `partition_deg` there, and no isotropic
+    /// pre-filter of a node's light stands in for that (issue 28). Off: one partition for every point.
+    pub grazing_tiers: bool,
 }
 
 impl Default for PrtSettings {
@@ -92,9 +100,17 @@ impl Default for PrtSettings {
     /// (bunny) and 20.09 / 20.06 / 20.27 % (teapot), PRT vs transfer 1.10 / 1.15 / 1.35 % (teapot);
     /// the frame takes 2.3× less time at 8° than at 4° (bench), and 16° only 1.2–1.7× less again.
     fn default() -> Self {
-        Self { partition_deg: 8.0, prefilter: true, max_edge_px: 1.0, horizon_leaves: HORIZON_LEAVES, texel_lookups: false, per_pixel: true, merge_runs: true }
+        Self { partition_deg: 8.0, prefilter: true, max_edge_px: 1.0, horizon_leaves: HORIZON_LEAVES, texel_lookups: false, per_pixel: true, merge_runs: true, grazing_tiers: true }
     }
 }
+
+/// The finer render partitions of grazing views ([`PrtSettings::grazing_tiers`]): (largest node
+/// half-angle in degrees, the view cosine wo·n below which a point uses it), finest first; a point at
+/// or above the last cosine uses `partition_deg`. The angles are those of the transfer's tiers for the
+/// paper's σ = π/40 (σ/4 and σ/2). Measured on issue 28's case (bunny, studio_1k, orbit 20,15,2.5,
+/// environment turned 90°, one sharp ring lobe along n, 160×120): see `tests/render.rs`,
+/// `sharp_lobe_at_grazing_views_against_monte_carlo`.
+pub const GRAZING_TIERS: [(f64, f64); 2] = [(1.125, 0.3), (2.25, 0.6)];
 
 /// A render-partition node's light under one rotation: per channel its radiant moment, and the
 /// luminance of its power. Read once per frame (a few hundred nodes) instead of four prefix-sum entries
@@ -116,6 +132,31 @@ pub(crate) fn luminance(rgb: [f64; 3]) -> f64 {
 #[inline]
 pub(crate) fn spread(moment: DVec3, power: f64) -> f64 {
     if power > 0.0 { (1.0 - moment.length() / power).max(0.0) } else { 0.0 }
+}
+
+/// The spread of a run's light in half-vector space (per-axis variance, rad²) for p's pre-filter.
+/// `v_omega`: the light's spread around wi (per axis, isotropic); wo_h = wo·h; lambda: the lobes'
+/// sharpness.
+///
+/// The map wi → h scales a jitter by 1/2 in the plane of wi and wo and by 1/(2 wo·h) across it, so the
+/// light's footprint in h is an ellipse of variances a = v_ω/4 and b = v_ω/(4 (wo·h)²). With
+/// `anisotropic` off the pre-filter takes the geometric mean √(ab) = v_ω/(4 wo·h) (what the wgpu
+/// preview and the transfer's ring filter use): right where the footprint is much wider than the lobe
+/// on both axes. At grazing views b ≫ σ² ≳ a, and a lobe (variance σ² = 1/(2λ) per axis) filtered by
+/// that ellipse peaks at σ²/√((σ² + a)(σ² + b)), well below the geometric mean's σ²/(σ² + √(ab)):
+/// with `anisotropic` the isotropic spread with that same peak, √((σ² + a)(σ² + b)) − σ², which is
+/// √(ab) again where a, b ≫ σ² and a = b = v_ω/4 at normal incidence (issue 28: the bunny's sharp
+/// lobe at grazing views, 28.8 → 17.9 % off Monte Carlo with one 8° partition).
+#[inline]
+pub fn half_vector_spread(v_omega: f64, wo_h: f64, lambda: f64, anisotropic: bool) -> f64 {
+    let c = wo_h.max(1e-3);
+    if !anisotropic {
+        return v_omega / (4.0 * c);
+    }
+    let s2 = 0.5 / lambda.max(1e-12);
+    let a = 0.25 * v_omega;
+    let b = a / (c * c);
+    ((s2 + a) * (s2 + b)).sqrt() - s2
 }
 
 /// Default of [`PrtSettings::horizon_leaves`]: nodes of ≤ 16 leaves (about 5.6° across at 64 per
@@ -367,6 +408,9 @@ pub struct Prt<'a> {
     span_offsets: Vec<u32>,
     spans: Vec<Span>,
     partition: Partition,
+    /// [`GRAZING_TIERS`]' partitions with their view cosines (empty unless `per_pixel` and
+    /// `grazing_tiers`).
+    tiers: Vec<(Partition, f64)>,
     settings: PrtSettings,
 }
 
@@ -381,7 +425,12 @@ impl<'a> Prt<'a> {
             span_offsets.push(spans.len() as u32);
         }
         let partition = tree.partition(settings.partition_deg.to_radians().max(1e-6));
-        Self { mesh, tree, tangents, span_offsets, spans, partition, settings }
+        let tiers = if settings.per_pixel && settings.grazing_tiers {
+            GRAZING_TIERS.iter().filter(|&&(deg, _)| deg < settings.partition_deg).map(|&(deg, below)| (tree.partition(deg.to_radians()), below)).collect()
+        } else {
+            Vec::new()
+        };
+        Self { mesh, tree, tangents, span_offsets, spans, partition, tiers, settings }
     }
 
     /// Nodes in the render partition (whole sphere).
@@ -439,13 +488,14 @@ impl<'a> Prt<'a> {
     /// v_ω = 1 − |moment| / power)` for every run with light above the horizon (v_ω only when
     /// `spreads`, else 0).
     #[inline]
-    fn for_each_lit_run(&self, corners: &[(u32, f64)], n: DVec3, light: &LightSums, node_light: Option<&[NodeLight]>, spreads: bool, mut f: impl FnMut([f64; 3], DVec3, f64)) {
+    #[allow(clippy::too_many_arguments)]
+    fn for_each_lit_run(&self, partition: &Partition, corners: &[(u32, f64)], n: DVec3, light: &LightSums, node_light: Option<&[NodeLight]>, spreads: bool, mut f: impl FnMut([f64; 3], DVec3, f64)) {
         if !self.settings.merge_runs {
-            return self.for_each_lit_piece(corners, n, light, node_light, spreads, |_, _, vis_cos_power, lum_moment, lum_power| f(vis_cos_power, lum_moment, spread(lum_moment, lum_power)));
+            return self.for_each_lit_piece(partition, corners, n, light, node_light, spreads, |_, _, vis_cos_power, lum_moment, lum_power| f(vis_cos_power, lum_moment, spread(lum_moment, lum_power)));
         }
         // The runs of one partition node arrive consecutively: (node, Σ V·cos power, Σ V·moment, Σ V·power).
         let mut pending: Option<(usize, [f64; 3], DVec3, f64)> = None;
-        self.for_each_lit_piece(corners, n, light, node_light, spreads, |si, vis, vis_cos_power, lum_moment, lum_power| match pending.as_mut() {
+        self.for_each_lit_piece(partition, corners, n, light, node_light, spreads, |si, vis, vis_cos_power, lum_moment, lum_power| match pending.as_mut() {
             Some(p) if p.0 == si => {
                 for (sum, x) in p.1.iter_mut().zip(vis_cos_power) {
                     *sum += x;
@@ -469,11 +519,12 @@ impl<'a> Prt<'a> {
     /// light ([`Self::node_light`]) for runs that are whole nodes, or `None` to read every run's from
     /// the prefix sums.
     #[inline]
-    fn for_each_lit_piece(&self, corners: &[(u32, f64)], n: DVec3, light: &LightSums, node_light: Option<&[NodeLight]>, spreads: bool, mut f: impl FnMut(usize, f64, [f64; 3], DVec3, f64)) {
+    #[allow(clippy::too_many_arguments)]
+    fn for_each_lit_piece(&self, partition: &Partition, corners: &[(u32, f64)], n: DVec3, light: &LightSums, node_light: Option<&[NodeLight]>, spreads: bool, mut f: impl FnMut(usize, f64, [f64; 3], DVec3, f64)) {
         let lists: [&[Span]; 3] = std::array::from_fn(|i| corners.get(i).map_or(&[][..], |&(v, _)| self.vertex_spans(v)));
         let weights: [f64; 3] = std::array::from_fn(|i| corners.get(i).map_or(0.0, |c| c.1));
         let count = corners.len().min(3);
-        let (ranges, nodes) = (&self.partition.ranges, &self.partition.nodes);
+        let (ranges, nodes) = (&partition.ranges, &partition.nodes);
         let leaves = self.tree.leaf_count() as u32;
         for_each_run(&lists[..count], &weights[..count], ranges, leaves, |a, z, vis, si| {
             let cone = self.tree.corner_cone(nodes[si] as usize);
@@ -524,7 +575,7 @@ impl<'a> Prt<'a> {
             if !(s > 0.0) {
                 return None;
             }
-            let spread = if self.settings.prefilter { v_omega / (4.0 * wo_h.max(1e-3)) } else { 0.0 };
+            let spread = if self.settings.prefilter { half_vector_spread(v_omega, wo_h, t.lambda(), self.settings.per_pixel) } else { 0.0 };
             let h = DVec3::new(0.0, 0.0, cos_h);
             return t.lookup_profile_filtered(h, spread).map(|p| (s, p));
         }
@@ -537,7 +588,12 @@ impl<'a> Prt<'a> {
         if s <= 0.0 {
             return None;
         }
-        let spread = if self.settings.prefilter { v_omega / (4.0 * wo.dot(h).max(1e-3)) } else { 0.0 };
+        let lambda = match specular {
+            Specular::Table(t) => t.lambda(),
+            Specular::Exact { lobes, .. } => lobes.lambda(),
+            Specular::None => return None,
+        };
+        let spread = if self.settings.prefilter { half_vector_spread(v_omega, wo.dot(h), lambda, self.settings.per_pixel) } else { 0.0 };
         let p = match specular {
             Specular::Table(t) => match (self.settings.texel_lookups, t.lookup_profile_filtered(h, spread)) {
                 (false, Some(p)) => p,
@@ -552,12 +608,17 @@ impl<'a> Prt<'a> {
 
     /// Outgoing radiance at a shading point seen from `eye`.
     pub fn shade_point(&self, point: &ShadingPoint, light: &LightSums, eye: DVec3, shading: &Shading) -> [f64; 3] {
-        self.shade_point_with(point, light, None, eye, shading)
+        self.shade_point_with(point, light, None, &[], eye, shading)
     }
 
     /// The partition nodes' light under `light` (for [`Self::for_each_lit_piece`]).
     fn node_light(&self, light: &LightSums) -> Vec<NodeLight> {
-        self.partition
+        Self::partition_light(&self.partition, light)
+    }
+
+    /// The nodes' light of a partition under `light`.
+    fn partition_light(partition: &Partition, light: &LightSums) -> Vec<NodeLight> {
+        partition
             .ranges
             .iter()
             .map(|&(a, z)| {
@@ -567,15 +628,26 @@ impl<'a> Prt<'a> {
             .collect()
     }
 
-    fn shade_point_with(&self, point: &ShadingPoint, light: &LightSums, node_light: Option<&[NodeLight]>, eye: DVec3, shading: &Shading) -> [f64; 3] {
+    /// The tiers' node light ([`Self::partition_light`]) for each of `self.tiers`.
+    fn tier_light(&self, light: &LightSums) -> Vec<Vec<NodeLight>> {
+        self.tiers.iter().map(|(p, _)| Self::partition_light(p, light)).collect()
+    }
+
+    /// `tier_light`: [`Self::tier_light`], or empty to read the tiers' runs from the prefix sums.
+    fn shade_point_with(&self, point: &ShadingPoint, light: &LightSums, node_light: Option<&[NodeLight]>, tier_light: &[Vec<NodeLight>], eye: DVec3, shading: &Shading) -> [f64; 3] {
         let Some((corners, count, position, n, frame)) = self.point_geometry(point) else { return [0.0; 3] };
         let wo_world = (eye - position).try_normalize().unwrap_or(n);
         let wo = frame.to_local(wo_world);
         // Where the shading normal faces away from the eye only the diffuse term is kept.
         let specular = if wo.z > 0.0 { shading.specular } else { Specular::None };
         let has_specular = !matches!(specular, Specular::None);
+        // A grazing view: a finer partition (only where there is a specular term to resolve).
+        let (partition, node_light) = match self.tiers.iter().position(|&(_, below)| has_specular && wo.z < below) {
+            Some(t) => (&self.tiers[t].0, tier_light.get(t).map(|l| l.as_slice())),
+            None => (&self.partition, node_light),
+        };
         let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
-        self.for_each_lit_run(&corners[..count], n, light, node_light, has_specular && self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
+        self.for_each_lit_run(partition, &corners[..count], n, light, node_light, has_specular && self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
             for c in 0..3 {
                 e[c] += vis_cos_power[c];
             }
@@ -603,7 +675,7 @@ impl<'a> Prt<'a> {
                 let point = ShadingPoint { corners: [v; 3], bary: [1.0, 0.0, 0.0] };
                 let mut entry = CachedVertex::default();
                 if let Some((corners, count, _, n, _)) = self.point_geometry(&point) {
-                    self.for_each_lit_run(&corners[..count], n, light, Some(&node_light), self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
+                    self.for_each_lit_run(&self.partition, &corners[..count], n, light, Some(&node_light), self.settings.prefilter, |vis_cos_power, lum_moment, v_omega| {
                         for c in 0..3 {
                             entry.irradiance[c] += vis_cos_power[c];
                         }
@@ -666,7 +738,7 @@ impl<'a> Prt<'a> {
         let radiance: Vec<[f64; 3]> = sm
             .points
             .par_iter()
-            .map(|p| self.shade_cached(p, cache, eye, shading).unwrap_or_else(|| self.shade_point_with(p, light, Some(&node_light), eye, shading)))
+            .map(|p| self.shade_cached(p, cache, eye, shading).unwrap_or_else(|| self.shade_point_with(p, light, Some(&node_light), &[], eye, shading)))
             .collect();
         interpolate(sm, &radiance, camera, width, height)
     }
@@ -674,7 +746,8 @@ impl<'a> Prt<'a> {
     /// Radiance of the given shading points (in parallel), in order.
     pub fn shade_points(&self, points: &[ShadingPoint], light: &LightSums, eye: DVec3, shading: &Shading) -> Vec<[f64; 3]> {
         let node_light = self.node_light(light);
-        points.par_iter().map(|p| self.shade_point_with(p, light, Some(&node_light), eye, shading)).collect()
+        let tier_light = self.tier_light(light);
+        points.par_iter().map(|p| self.shade_point_with(p, light, Some(&node_light), &tier_light, eye, shading)).collect()
     }
 
     /// The shading mesh this renderer would use for a view. With `per_pixel`, its points are the
