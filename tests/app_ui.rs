@@ -9,6 +9,7 @@
 
 use egui::{Event, Modifiers, PointerButton, Pos2};
 use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
 use glint::app::{AppOptions, GlintApp};
 use glint::fit::strokes::polyline_distance;
 use glint::render::Image;
@@ -215,4 +216,46 @@ fn replay_screenshot_writes_the_app_after_the_fit() {
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// At the app's default window size (1280×760) the side panel is taller than the window: the mouse
+/// wheel over it scrolls it until the export row, below the window's edge at first, is on screen.
+#[test]
+fn side_panel_scrolls_to_the_export_row_at_the_default_window_size() {
+    if !gpu_or_skip() {
+        return;
+    }
+    let opts = options();
+    let (w, h_px) = (1280.0, 760.0);
+    let mut h: AppHarness = Harness::builder().with_size([w, h_px]).with_max_steps(1_000_000).build_ui_state(
+        move |ui, state: &mut Option<GlintApp>| {
+            state.get_or_insert_with(|| GlintApp::new(opts.clone(), ui.ctx())).show(ui);
+        },
+        None,
+    );
+    step_until(&mut h, "the first view's bake, frame and prepared fit", 300.0, |a| a.ready() && a.preview_image().is_some() && a.first_fit_ready_secs().is_some());
+    // A fit puts the p(h) image into the panel (what pushed the export row off the window).
+    let settings = app(&h).document().settings.clone();
+    h.state_mut().as_mut().unwrap().set_settings(settings);
+    step_until(&mut h, "a fit", 120.0, |a| a.fits_done() >= 1 && !a.fit_pending());
+    for _ in 0..10 {
+        h.step();
+    }
+    let before = h.get_by_label("Export").rect();
+    eprintln!("export button at y {:.0}..{:.0} in a {h_px}-point window", before.min.y, before.max.y);
+    let panel = Pos2::new(w - 80.0, 0.5 * h_px);
+    h.event(Event::PointerMoved(panel));
+    h.step();
+    for _ in 0..40 {
+        h.event(Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: egui::vec2(0.0, -60.0), phase: egui::TouchPhase::Move, source: egui::MouseWheelSource::Unknown, modifiers: Modifiers::NONE });
+        h.step();
+    }
+    for _ in 0..30 {
+        h.step();
+    }
+    let after = h.get_by_label("Export").rect();
+    eprintln!("after scrolling: y {:.0}..{:.0}", after.min.y, after.max.y);
+    assert!(after.min.y >= 0.0 && after.max.y <= h_px, "the export row is not reachable: {after:?} (window height {h_px})");
+    assert!(before.max.y > h_px, "the export row fits without scrolling now ({before:?}): this test no longer checks the scrolling");
+    assert!(after.min.y < before.min.y, "the wheel did not scroll the panel: {before:?} -> {after:?}");
 }

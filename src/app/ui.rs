@@ -418,7 +418,11 @@ impl GlintApp {
             self.undo();
         }
         egui::Panel::right("glint side panel").resizable(true).default_size(300.0).show(ui, |ui| {
-            egui::ScrollArea::vertical().show(ui, |ui| self.side_panel(ui));
+            // The panel is taller than the default window once the p(h) image is shown: it scrolls
+            // with the wheel, and its bar is always drawn so that one sees it can (tests/app_ui.rs).
+            // (egui's default floating bar is invisible until hovered: a solid one instead.)
+            ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
+            egui::ScrollArea::vertical().scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible).show(ui, |ui| self.side_panel(ui));
         });
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
         // Settled settings (no button held): one history step and one fit.
