@@ -32,8 +32,8 @@ pub struct MatrixOptions {
 }
 
 impl MatrixOptions {
-    /// The documented matrix: 160×120, 1024 spp.
-    pub const FULL: MatrixOptions = MatrixOptions { size: (160, 120), spp: 1024 };
+    /// The documented matrix: 128×96, 1024 spp.
+    pub const FULL: MatrixOptions = MatrixOptions { size: (128, 96), spp: 1024 };
     /// A small one (CI): 64×48, 1024 spp.
     pub const QUICK: MatrixOptions = MatrixOptions { size: (64, 48), spp: 1024 };
 }
