@@ -153,3 +153,19 @@ def test_table_at_512_is_within_1e3_of_peak_numpy(isotropic):
     exact = m.p(h[:, 0], h[:, 1], h[:, 2])
     u, v = L.hemi_oct_encode(h[:, 0], h[:, 1], h[:, 2])
     assert np.max(np.abs(table_lookup(table, u, v) - exact)) <= 1e-3 * exact.max()
+
+
+def test_glint_material_json_is_read_like_the_lobe_json():
+    """`glint fit`'s material JSON (layout as an object, no `isotropic` key) gives the same material
+    as the export's lobe JSON."""
+    from glint_mitsuba.material import material_from_dict
+
+    common = {"lambda": 81.06, "centres": [[0.0, 0.0, 1.0], [0.5, 0.0, 0.8660254037844386]],
+              "coefficients": [[1.0, 0.5], [0.8, 0.4], [0.6, 0.3]], "rho_d": [0.2, 0.2, 0.2], "f0": 0.04}
+    fit_json = dict(common, layout={"kind": "isotropic", "count": 2}, model="dbrdf-srbf", version=1)
+    lobe_json = dict(common, layout="isotropic-2", isotropic=True)
+    a, b = material_from_dict(fit_json), material_from_dict(lobe_json)
+    assert a.isotropic and b.isotropic
+    assert (a.coefficients == b.coefficients).all() and (a.centres == b.centres).all()
+    aniso = material_from_dict(dict(common, layout={"kind": "hemicube", "n": 1}))
+    assert not aniso.isotropic

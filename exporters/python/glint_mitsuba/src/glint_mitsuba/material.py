@@ -246,6 +246,13 @@ def read_lobes_json(path: str) -> Material:
 
 
 def material_from_dict(d: dict, where: str = "lobes") -> Material:
+    """The lobe JSON of an export (`<name>_lobes.json`, the glTF extras' object) or glint's material
+    JSON (`glint fit`'s output, whose `layout` is an object such as {"kind": "isotropic", "count": 24}
+    and which has no `isotropic` key)."""
+    if "isotropic" not in d and "layout" in d:
+        layout = d["layout"]
+        kind = layout.get("kind") if isinstance(layout, dict) else str(layout).split("-")[0]
+        d = dict(d, isotropic=(kind == "isotropic"))
     for key in ("lambda", "isotropic", "centres", "coefficients", "rho_d", "f0"):
         if key not in d:
             raise MaterialError(f"{where}: key {key!r} is missing")
