@@ -43,7 +43,8 @@ impl SceneCamera {
         if !(self.yfov_rad > 0.0 && self.yfov_rad < std::f64::consts::PI) {
             return bad(format!("camera '{}': the field of view {} rad is outside (0, pi)", self.name.escape_debug(), self.yfov_rad));
         }
-        if !(self.znear > 0.0) || self.zfar.is_some_and(|f| f <= self.znear) {
+        // (finiteness was checked above, so the comparisons are total)
+        if self.znear <= 0.0 || self.zfar.is_some_and(|f| f <= self.znear) {
             return bad(format!("camera '{}': near {} and far {:?} planes are not 0 < near < far", self.name.escape_debug(), self.znear, self.zfar));
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
