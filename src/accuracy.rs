@@ -80,6 +80,7 @@ pub fn views(bounds: &Bounds, (w, h): (u32, u32)) -> Vec<(String, Camera)> {
 /// The matrix's materials; `anisotropic` only when `tangents` (the mesh has a tangent field).
 pub fn materials(tangents: bool) -> Vec<(String, Material)> {
     let iso = |lambda: f64, rho_d: f64, c: &dyn Fn(f64) -> f64| -> Material {
+        // Cannot fail: a fixed, valid layout (24 lobes) and λ ∈ {10, 81.06} > 0.
         let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, lambda).expect("isotropic-24");
         let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [1.0, 0.9, 0.8][ch] * c(x.z.clamp(-1.0, 1.0).acos())).collect());
         let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(0.0);
@@ -90,6 +91,7 @@ pub fn materials(tangents: bool) -> Vec<(String, Material)> {
         ("broad".to_string(), iso(10.0, 0.3, &|theta| 0.6 * (-(theta / 0.6).powi(2)).exp())),
     ];
     if tangents {
+        // Cannot fail: a fixed, valid layout (75 lobes) and λ = 40.
         let lobes = LobeSet::new(LobeLayout::Hemicube { n: 5 }, 40.0).expect("hemicube-5");
         let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [1.2, 1.0, 0.8][ch] * (-(x.x / 0.6).powi(2) - (x.y / 0.15).powi(2)).exp()).collect());
         let sigma = srbf::sigma_from_lambda(40.0).unwrap_or(0.0);
@@ -173,10 +175,11 @@ pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: Matri
             let (_, tangents, _) = crate::bake::decisions::decide_frames(&refined.mesh);
             let prt = Prt::new(&refined.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), PrtSettings::default());
             progress(i * maps.len() + j, total, &format!("{mesh_name} under {map_name}: rendering"));
-            for (view_name, camera) in views(&scene.bounds, options.size) {
-                for rotation_deg in [0.0, 90.0] {
-                    let rotation = f64::to_radians(rotation_deg);
-                    let light = LightSums::new(env, &baker.set, &baker.tree, rotation);
+            // The light sums depend on the rotation only: once per rotation, not per view.
+            for rotation_deg in [0.0, 90.0] {
+                let rotation = f64::to_radians(rotation_deg);
+                let light = LightSums::new(env, &baker.set, &baker.tree, rotation);
+                for (view_name, camera) in views(&scene.bounds, options.size) {
                     for (material_name, m) in materials(tangents.is_some() && ref_tangents.is_some()) {
                         let lobes = m.lobes()?;
                         let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];

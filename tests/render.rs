@@ -442,31 +442,18 @@ fn refine_study() {
     }
 }
 
-/// Object pixels of `image` with a background 4-neighbour (or on the image's border).
-fn silhouette_pixels(image: &glint::render::Image) -> Vec<bool> {
-    let (w, h) = (image.width as i64, image.height as i64);
-    let covered = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h && image.covered[(y * w + x) as usize];
-    (0..w * h)
-        .map(|k| {
-            let (x, y) = (k % w, k / w);
-            covered(x, y) && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|&(dx, dy)| !covered(x + dx, y + dy))
-        })
-        .collect()
-}
-
-/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with `None`).
+/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with `None`):
+/// the accuracy matrix's measure (`glint::accuracy::masked_rel_rmse`).
 fn rmse_where(a: &glint::render::Image, b: &glint::render::Image, mask: Option<&[bool]>) -> f64 {
-    let (mut num, mut den) = (0.0f64, 0.0f64);
-    for k in 0..a.pixels.len() {
-        if a.covered[k] && b.covered[k] && mask.is_none_or(|m| m[k]) {
-            for c in 0..3 {
-                let (x, y) = (a.pixels[k][c] as f64, b.pixels[k][c] as f64);
-                num += (x - y) * (x - y);
-                den += y * y;
-            }
+    let all;
+    let mask = match mask {
+        Some(m) => m,
+        None => {
+            all = vec![true; b.pixels.len()];
+            &all
         }
-    }
-    (num / den).sqrt()
+    };
+    glint::accuracy::masked_rel_rmse(a, b, mask).0
 }
 
 /// One sharp ring lobe along the normal (isotropic-24 at the paper's σ, λ = 81, only θ_j = 0 set,
@@ -531,7 +518,7 @@ fn sharp_lobe_diagnose() {
     let spp: u32 = var("SPP", "2048").parse().unwrap();
     let base = prt_and_mc(&c, &imported, &m, &camera, rot, w, h, spp, PrtSettings::default());
     let mc = &base.mc;
-    let sil = silhouette_pixels(mc);
+    let sil = glint::accuracy::silhouette_mask(mc);
     println!("MC {:.1} s ({spp} spp), PRT {:.3} s; {} object pixels, {} silhouette", base.mc_secs, base.prt_secs, mc.covered_count(), sil.iter().filter(|&&s| s).count());
     let report = |label: &str, img: &glint::render::Image| {
         let (all, s) = (rmse_where(img, mc, None), rmse_where(img, mc, Some(&sil)));
@@ -630,7 +617,7 @@ fn sharp_lobe_at_grazing_views_against_monte_carlo() {
     let camera = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
     let pair = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 2048, PrtSettings::default());
     let old = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 1, PrtSettings { grazing_tiers: false, ..PrtSettings::default() });
-    let sil = silhouette_pixels(&pair.mc);
+    let sil = glint::accuracy::silhouette_mask(&pair.mc);
     let (object, silhouette) = (rmse_where(&pair.prt, &pair.mc, None), rmse_where(&pair.prt, &pair.mc, Some(&sil)));
     let (old_object, old_silhouette) = (rmse_where(&old.prt, &pair.mc, None), rmse_where(&old.prt, &pair.mc, Some(&sil)));
     println!(
@@ -695,7 +682,7 @@ fn sharp_lobe_quadrature() {
     let kk: usize = var("K", "6").parse().unwrap();
     let npx: usize = var("N", "40").parse().unwrap();
     let pair = prt_and_mc(&c, &imported, &m, &camera, rot, w, h, spp, PrtSettings::default());
-    let sil = silhouette_pixels(&pair.mc);
+    let sil = glint::accuracy::silhouette_mask(&pair.mc);
     println!("PRT {:.3} s; PRT vs MC ({spp} spp): object {:.2} %, silhouette {:.2} %", pair.prt_secs, 100.0 * rmse_where(&pair.prt, &pair.mc, None), 100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil)));
     let lobes = m.lobes().unwrap();
     let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
