@@ -1,7 +1,7 @@
 //! `glint fit` end to end: bake, fit a stroke file, read the material back, check the `--dump-qp`
 //! arrays; bad stroke files and unknown views give one-line errors, exit 1 and no output file.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

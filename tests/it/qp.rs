@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-mod common;
+use crate::common;
 
 use glint::fit::qp::{
     Constraint, HotStart, QpError, QpProblem, QpSolution, QpSolver, kkt_residuals, solve,

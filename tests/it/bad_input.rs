@@ -12,7 +12,7 @@
 //! an unbroken base ([`base_glb`], [`base_exr`], …) with one defect; `unbroken_bases_are_accepted`
 //! checks that the bases themselves pass, so a case fails because of its defect only.
 
-mod common;
+use crate::common;
 
 use std::io::Cursor;
 use std::path::{Path, PathBuf};

@@ -3,7 +3,7 @@
 //! The GPU tests need an adapter: in CI that is Mesa's lavapipe (`mesa-vulkan-drivers`, installed by
 //! `.ci/test`). Without one they fail under `CI=true` and are skipped with a message elsewhere.
 
-mod common;
+use crate::common;
 
 use glint::bake::{BakeSettings, Baker};
 use glint::fit::run::{FitSettings, fit};
@@ -49,7 +49,7 @@ fn context() -> Option<GpuContext> {
     }
 }
 
-const STROKES: &str = include_str!("../samples/strokes/bunny-highlight.json");
+const STROKES: &str = include_str!("../../samples/strokes/bunny-highlight.json");
 
 /// Bakes `mesh` under studio, fits the sample strokes, and compares the GPU with the CPU per vertex
 /// and per pixel, at two rotations.

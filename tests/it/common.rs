@@ -153,9 +153,12 @@ macro_rules! run_glint {
     };
 }
 
-/// A fresh, empty temporary folder named for the test and process.
+/// A fresh, empty temporary folder named for the test, the process and a per-process counter (the
+/// tests share one process, so two tests asking for the same name get different folders).
 pub fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("glint-{name}-{}", std::process::id()));
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("glint-{name}-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir

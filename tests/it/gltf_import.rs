@@ -7,7 +7,7 @@
 //! No bad input may panic the library: each bad case asserts the error variant, and a mutation
 //! sweep imports hundreds of corrupted files.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -9,7 +9,7 @@
 //! line with only its `"solve_seconds"` line left out. (The bake file's trailing checksum covers the
 //! header, so it differs exactly when the timings do; it is not compared.)
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

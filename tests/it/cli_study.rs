@@ -3,7 +3,7 @@
 //! independent check that the truth and the comparison work), every error is a finite fraction, and
 //! the Pareto front (time, error, fit residual) is non-empty and undominated.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

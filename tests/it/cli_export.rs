@@ -8,7 +8,7 @@
 //! The Python (usd-core) and node (gltf-validator) tools come from `.ci/test`; under CI=true a missing
 //! tool fails the test, elsewhere the check is skipped with a note.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

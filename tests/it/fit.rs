@@ -2,7 +2,7 @@
 //! objective against Clarabel with constraints and KKT checked, and every hard case of method.md §9
 //! that belongs to the fit.
 
-mod common;
+use crate::common;
 
 use glint::bake::{BakeSettings, Baker};
 use glint::env::EnvMap;

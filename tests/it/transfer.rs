@@ -3,7 +3,7 @@
 
 #![allow(clippy::too_many_arguments)]
 
-mod common;
+use crate::common;
 
 use glam::{DVec3, Vec3A};
 use glint::bake::{BakeSettings, Baker, CutSettings};
@@ -150,8 +150,8 @@ fn direct_t(
 fn transfer_matches_direct_integration_and_converges() {
     // Suzanne (7.5K vertices): per-vertex visibility is fine enough for 1 %. (The 1.8K-vertex bunny
     // bottoms out near 1.1 % and the bumpy dragon scan near 2 %: at those pixels visibility
-    // interpolated from the vertices differs from the pixel's own; GLINT_MESH=bunny shows it.)
-    let mesh = std::env::var("GLINT_MESH").unwrap_or_else(|_| "suzanne".into());
+    // interpolated from the vertices differs from the pixel's own.)
+    let mesh = "suzanne";
     let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
     let env = glint::env::load(&common::assets().join("hdr/small/courtyard_512.exr")).unwrap();
     let lobes = paper_lobes(LobeLayout::Isotropic { count: 24 });
@@ -170,7 +170,7 @@ fn transfer_matches_direct_integration_and_converges() {
         let offset = settings.cut.ray_offset * scene.bounds.diagonal() as f64;
         // Sample pixels spread over the image: every 150th covered pixel.
         let (mut num, mut den, mut num_e, mut den_e) = (0.0, 0.0, 0.0, 0.0);
-        for p in (0..transfer.pixels.len()).step_by(std::env::var("GLINT_STEP").ok().and_then(|x| x.parse().ok()).unwrap_or(150)) {
+        for p in (0..transfer.pixels.len()).step_by(150) {
             let px = transfer.pixels[p];
             // The reference uses the exact surface point of the pixel and the bake's vertex normal
             // interpolation, so it shares the shading normal but nothing of the visibility or the sums.
@@ -187,7 +187,7 @@ fn transfer_matches_direct_integration_and_converges() {
         }
         let (rel_t, rel_e) = ((num / den).sqrt(), (num_e / den_e).sqrt());
         println!("{mesh} {label} (n={resolution}, cells of {cell_leaves}, ε={epsilon}): relative RMS error T {rel_t:.4}, E {rel_e:.4}, transfer {:.3} s", transfer.seconds);
-        if label == "default" && mesh == "suzanne" && std::env::var_os("GLINT_TRANSFER_STRIDE").is_none() {
+        if label == "default" {
             assert!(rel_t < 0.01, "T off by {rel_t} at default settings");
         }
         // Converges: each refinement is at least as close (within the visibility floor's noise).

@@ -1,164 +1,49 @@
-//! The renderers against each other (method.md §7, issue #5): the CPU PRT render (default settings,
-//! tabulated p) against the Monte Carlo reference (exact visibility, exact lobes, the environment map
-//! itself, 4096 spp) on the bunny and the teapot; the table against the exact lobe sum; a white furnace.
+//! Render studies: the PRT frame against the Monte Carlo reference and the transfer render, one
+//! ingredient or setting at a time, printed as tables (developer tools behind the accuracy figures in
+//! docs/benchmarks.md; tests/it/render.rs holds the assertions). Run one by name with KEY=VALUE
+//! settings, e.g. `cargo run --release --example render_studies -- diagnose MESH=teapot`.
 
+#[path = "../tests/it/common.rs"]
 mod common;
+#[path = "../tests/it/render_cases.rs"]
+mod render_cases;
 
 use glint::bake::{BakeSettings, Baker};
-use glint::env::EnvMap;
-use glint::fit::run::{FitSettings, fit};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
 use glint::render::table::{PhTable, default_resolution};
-use glint::scene::Scene;
+use render_cases::*;
 
-struct Case {
-    /// The baked scene (its mesh refined when the bake refined it).
-    scene: Scene,
-    env: EnvMap,
-    baker_offset: f64,
-    bake: glint::bake::Bake,
-    tangents: Option<Vec<glam::Vec4>>,
-    set: glint::sphere::DirectionSet,
-    tree: glint::sphere::LightTree,
+/// A study's setting: `KEY=VALUE` on the command line (in place of an environment variable).
+fn arg(key: &str) -> Result<String, std::env::VarError> {
+    let prefix = format!("{key}=");
+    std::env::args().skip(2).find_map(|a| a.strip_prefix(&prefix).map(str::to_owned)).ok_or(std::env::VarError::NotPresent)
 }
 
-/// The mesh baked as imported.
-fn case(mesh: &str, env: &str) -> Case {
-    case_with(mesh, env, false)
+/// Where studies write images: `OUT`, else glint-studies in the system temp folder.
+fn out_dir() -> std::path::PathBuf {
+    arg("OUT").map(std::path::PathBuf::from).unwrap_or_else(|_| std::env::temp_dir().join("glint-studies"))
 }
 
-/// With `refined`, baked as `glint bake` does: the mesh refined where visibility changes (decision (e)).
-fn case_with(mesh: &str, env: &str, refined: bool) -> Case {
-    case_at(&common::assets().join(format!("glb/{mesh}.glb")), &common::assets().join(format!("hdr/small/{env}.exr")), refined)
-}
-
-/// [`case_with`] for a scene and an environment given by path.
-fn case_at(mesh: &std::path::Path, env: &std::path::Path, refined: bool) -> Case {
-    let scene = glint::scene::import(mesh).unwrap();
-    let env = glint::env::load(env).unwrap();
-    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-    let bake = if refined { baker.bake_refined(None, &|_| {}) } else { baker.bake_all(None, &|_| {}) };
-    let offset = baker.ray_offset();
-    let (set, tree) = (baker.set.clone(), baker.tree.clone());
-    drop(baker);
-    let scene = bake.scene(&scene).unwrap();
-    let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
-    Case { scene, env, baker_offset: offset, bake, tangents, set, tree }
-}
-
-const STROKES: &str = include_str!("../samples/strokes/bunny-highlight.json");
-
-/// Fits the sample strokes (a highlight painted on the default view) and returns the material.
-fn fitted(c: &Case) -> glint::fit::material::Material {
-    let views = glint::fit::strokes::parse(STROKES).unwrap();
-    let outcome = fit(&c.scene, &c.env, &c.bake.cuts, c.bake.decisions.resolution, c.tangents.as_deref(), c.bake.decisions.anisotropic, &views, &FitSettings::default()).unwrap();
-    let m = outcome.material;
-    assert!(m.coefficients.iter().flatten().any(|&x| x > 0.0), "the strokes must produce a specular lobe");
-    m
-}
-
-/// Errors of one comparison, relative RMSE over the object's pixels.
-struct Errors {
-    prt_vs_mc: f64,
-    prt_vs_transfer: f64,
-    transfer_vs_mc: f64,
-    table_vs_exact: f64,
-    mc_noise: f64,
-}
-
-fn compare(mesh: &str, w: u32, h: u32) -> Errors {
-    let c = case_with(mesh, "studio_512", true);
-    // The truth is rendered on the mesh as imported (the refinement does not move the surface).
-    let imported = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-    let (_, imported_tangents, _) = glint::bake::decisions::decide_frames(&imported.mesh);
-    let m = fitted(&c);
-    let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-    let camera = &c.scene.cameras[0];
-    let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default());
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    let t0 = std::time::Instant::now();
-    let tab = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
-    let frame = t0.elapsed().as_secs_f64();
-    let exact = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Exact { lobes: &lobes, coefficients } });
-    // The per-pixel transfer render (same cuts, T·c + ρd E/π): what the PRT frame approximates.
-    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
-    let t = ctx.compute(&light, camera, w, h, m.f0);
-    let mut transfer = glint::render::Image::new(w, h);
-    for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
-        transfer.set(p.x, p.y, v.map(|x| x as f32));
+fn main() {
+    let studies: &[(&str, fn())] = &[("diagnose", diagnose), ("subdivision_study", subdivision_study), ("profile_frame", profile_frame), ("refine_study", refine_study), ("sharp_lobe_diagnose", sharp_lobe_diagnose), ("sharp_lobe_quadrature", sharp_lobe_quadrature)];
+    let name = std::env::args().nth(1).unwrap_or_default();
+    match studies.iter().find(|(n, _)| *n == name) {
+        Some((_, run)) => run(),
+        None => {
+            let names: Vec<_> = studies.iter().map(|(n, _)| *n).collect();
+            eprintln!("usage: render_studies STUDY [KEY=VALUE ...]; STUDY is one of {}", names.join(", "));
+            std::process::exit(2);
+        }
     }
-    let t0 = std::time::Instant::now();
-    let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
-    let tracer = glint::bake::Tracer::new(&imported.mesh);
-    let mc = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
-    let mc_secs = t0.elapsed().as_secs_f64();
-    // The reference's own noise: a second 4096-spp render with another seed (the difference of two
-    // is √2 × the noise of one).
-    let mc2 = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 8);
-    let diffuse_only = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::None });
-    // The BRDF once per partition node (merged runs, the default) against once per run.
-    let per_run = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { merge_runs: false, ..PrtSettings::default() }).render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
-    let merged_vs_per_run = tab.relative_rmse(&per_run).unwrap();
-    println!("{mesh}: merged runs vs the BRDF per run {merged_vs_per_run:.5}, per run vs MC {:.4}", per_run.relative_rmse(&mc).unwrap());
-    assert!(merged_vs_per_run < 0.005, "{mesh}: merged runs {merged_vs_per_run} off the per-run frame");
-    let e = Errors {
-        prt_vs_mc: tab.relative_rmse(&mc).unwrap(),
-        prt_vs_transfer: tab.relative_rmse(&transfer).unwrap(),
-        transfer_vs_mc: transfer.relative_rmse(&mc).unwrap(),
-        table_vs_exact: tab.relative_rmse(&exact).unwrap(),
-        mc_noise: mc2.relative_rmse(&mc).unwrap() / 2f64.sqrt(),
-    };
-    let e_diffuse = diffuse_only.relative_rmse(&mc).unwrap();
-    println!(
-        "{mesh} {w}x{h}: {} baked vertices ({}), {} object pixels, shading subdivision {}, PRT frame {frame:.3} s, MC {mc_secs:.1} s; relative RMSE: PRT vs MC {:.4}, PRT vs per-pixel transfer {:.4}, transfer vs MC {:.4}, table vs exact lobes {:.5}, MC noise {:.4}, diffuse-only vs MC {e_diffuse:.3}",
-        c.scene.mesh.positions.len(),
-        c.bake.decisions.refine_reason,
-        tab.covered_count(),
-        prt.shading_mesh(camera, w, h).subdivision,
-        e.prt_vs_mc,
-        e.prt_vs_transfer,
-        e.transfer_vs_mc,
-        e.table_vs_exact,
-        e.mc_noise
-    );
-    assert!(e_diffuse > 0.3, "the specular term must matter in this comparison (diffuse-only is {e_diffuse} off)");
-    assert!(e.mc_noise < 0.015, "reference noise {}", e.mc_noise);
-    assert!(e.table_vs_exact <= 0.005, "{mesh}: table vs exact lobes {} > 0.5 %", e.table_vs_exact);
-    e
 }
 
-// The issue's goal is PRT vs Monte Carlo within 2 %: met (2026-11-24: bunny 1.27 %, teapot 1.70 %),
-// baked as `glint bake` does — the mesh refined where visibility changes (decision (e)) and, under the
-// studio's small bright lights, cells at shadow edges traced again at half and a quarter of the cell
-// (decision (d)'s boundary refinement; 2.11 % and 3.40 % without it) — and shaded per pixel. The frame
-// is within 0.5 % of the per-pixel transfer render, which shares the cuts. The bounds are the goal, so
-// a regression past it (a bake that stops refining cells or the mesh, a frame that interpolates again)
-// fails.
-#[test]
-fn prt_against_monte_carlo_on_the_bunny() {
-    let e = compare("bunny", 160, 120);
-    assert!(e.prt_vs_transfer <= 0.01, "PRT vs per-pixel transfer {}", e.prt_vs_transfer);
-    assert!(e.prt_vs_mc <= 0.02, "PRT vs Monte Carlo {}", e.prt_vs_mc);
-}
-
-#[test]
-fn prt_against_monte_carlo_on_the_teapot() {
-    let e = compare("teapot", 160, 120);
-    assert!(e.prt_vs_transfer <= 0.01, "PRT vs per-pixel transfer {}", e.prt_vs_transfer);
-    assert!(e.prt_vs_mc <= 0.02, "PRT vs Monte Carlo {}", e.prt_vs_mc);
-}
-
-/// Developer tool (not run by CI): `MESH=teapot cargo test --test render diagnose -- --ignored --nocapture`
+/// Study: `cargo run --example render_studies -- diagnose MESH=teapot`
 /// prints PRT, transfer and Monte Carlo errors for a grid of PRT settings (ES: shading-triangle edges in
-/// pixels; a negative value shades per pixel) and writes images to /tmp/diag.
-#[test]
-#[ignore]
+/// pixels; a negative value shades per pixel) and writes images to `OUT` (default: the system temp folder's glint-studies).
 fn diagnose() {
-    let mesh = std::env::var("MESH").unwrap_or("bunny".into());
+    let mesh = arg("MESH").unwrap_or("bunny".into());
     let (w, h) = (160, 120);
     let c = case(&mesh, "studio_512");
     let m = fitted(&c);
@@ -170,7 +55,7 @@ fn diagnose() {
     let camera = &c.scene.cameras[0];
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
     let tracer = glint::bake::Tracer::new(&c.scene.mesh);
-    let out = std::path::Path::new("/tmp/diag");
+    let out = &out_dir();
     std::fs::create_dir_all(out).unwrap();
     for (name, coef) in [("diffuse", zc), ("full", coefficients)] {
         let material = ExactMaterial { lobes: &lobes, coefficients: coef, rho_d: m.rho_d, f0: m.f0 };
@@ -185,8 +70,8 @@ fn diagnose() {
             timg.set(p.x, p.y, v.map(|x| x as f32));
         }
         let mut variants = vec![("default".to_string(), PrtSettings::default())];
-        let pds: Vec<f64> = std::env::var("PDS").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![1.0, 2.0, 4.0]);
-        let es: Vec<f64> = std::env::var("ES").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
+        let pds: Vec<f64> = arg("PDS").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![1.0, 2.0, 4.0]);
+        let es: Vec<f64> = arg("ES").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
         for &pd in &pds {
             for &e in &es {
                 variants.push((format!("p{pd}e{e}"), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e, per_pixel: e < 0.0, ..PrtSettings::default() }));
@@ -221,62 +106,10 @@ fn diagnose() {
     }
 }
 
-/// Diffuse PRT on an unoccluded sphere against the closed form: L(d) = 1 + a·d gives
-/// E(n) = π + (2π/3) a·n, so with ρd = 1 the radiance is 1 + (2/3) a·n at every vertex. The white
-/// furnace is a = 0.
-#[test]
-fn diffuse_prt_matches_the_closed_form_on_a_sphere() {
-    let mesh = common::uv_sphere(1.0, 48, 24, false);
-    let scene = common::scene_from_mesh(mesh);
-    for a in [glam::DVec3::ZERO, glam::DVec3::new(0.3, 0.5, -0.2)] {
-        let env = EnvMap::from_fn(512, 256, |d| [(1.0 + a.dot(d)) as f32; 3]).unwrap();
-        let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-        let bake = baker.bake_all(None, &|_| {});
-        assert_eq!(bake.stats.rays_traced, 0);
-        let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
-        for settings in [PrtSettings::default(), PrtSettings { partition_deg: 30.0, ..PrtSettings::default() }] {
-            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, settings);
-            let shading = Shading { rho_d: [1.0; 3], f0: 0.04, specular: Specular::None };
-            let mut worst = 0.0f64;
-            for v in 0..scene.mesh.positions.len() as u32 {
-                let p = glint::render::prt::ShadingPoint { corners: [v; 3], bary: [1.0, 0.0, 0.0] };
-                let got = prt.shade_point(&p, &light, glam::DVec3::new(0.0, 0.0, 10.0), &shading)[0];
-                let n = scene.mesh.normals[v as usize].as_dvec3();
-                let want = 1.0 + 2.0 / 3.0 * a.dot(n);
-                worst = worst.max((got - want).abs() / want);
-            }
-            println!("a = {a}, partition {}°: worst relative error {worst:.2e}", settings.partition_deg);
-            assert!(worst < 2e-3, "a = {a}: {worst}");
-        }
-    }
-}
-
-/// The default PRT frame, the vertex-only PRT frame and the per-pixel transfer render of `m` in the
-/// case's first camera.
-fn prt_and_transfer(c: &Case, m: &glint::fit::material::Material, w: u32, h: u32) -> (glint::render::Image, glint::render::Image, glint::render::Image) {
-    let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-    let camera = &c.scene.cameras[0];
-    let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default()).render(&light, camera, w, h, &shading);
-    let prt_v = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() }).render(&light, camera, w, h, &shading);
-    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
-    let t = ctx.compute(&light, camera, w, h, m.f0);
-    let mut transfer = glint::render::Image::new(w, h);
-    for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
-        transfer.set(p.x, p.y, v.map(|x| x as f32));
-    }
-    (prt, prt_v, transfer)
-}
-
-/// Dev study (ignored): transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
-/// mesh (`cargo test --test render subdivision_study -- --ignored --nocapture`).
-#[test]
-#[ignore]
+/// Study: transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
+/// mesh (`cargo run --example render_studies -- subdivision_study`).
 fn subdivision_study() {
-    let spec = std::env::var("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
+    let spec = arg("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
     for item in spec.split(',') {
         let f: Vec<&str> = item.split(':').collect();
         let (mesh, levels, cell_deg, epsilon): (&str, usize, f64, f64) = (f[0], f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
@@ -316,45 +149,10 @@ fn subdivision_study() {
     }
 }
 
-/// The cached frame (per-vertex light kept across views and materials) equals the direct frame: for
-/// new views and a new material from one cache, with vertex shading and with subdivided shading
-/// (whose interior points are shaded directly), on a mesh with and one without a tangent field.
-#[test]
-fn cached_frames_equal_direct_frames() {
-    for mesh in ["bunny", "teapot"] {
-        let c = case(mesh, "studio_512");
-        let m = fitted(&c);
-        let lobes = m.lobes().unwrap();
-        let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-        let co = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-        let table = PhTable::build(&lobes, co, default_resolution(lobes.lambda()));
-        let halved: Vec<Vec<f64>> = m.coefficients.iter().map(|ch| ch.iter().map(|x| 0.5 * x).collect()).collect();
-        let table2 = PhTable::build(&lobes, [&halved[0], &halved[1], &halved[2]], default_resolution(lobes.lambda()));
-        for max_edge_px in [0.0, 2.0] {
-            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: 16.0, max_edge_px, per_pixel: false, ..PrtSettings::default() });
-            let mut cache = glint::render::VertexLight::default();
-            let cameras = [c.scene.cameras[0].clone(), glint::scene::orbit_camera(&c.scene.bounds, 70.0, 25.0, 0.0, 160, 120)];
-            for (k, camera) in cameras.iter().enumerate() {
-                for (t, rho_d) in [(&table, m.rho_d), (&table2, [0.3, 0.4, 0.5])] {
-                    let shading = Shading { rho_d, f0: m.f0, specular: Specular::Table(t) };
-                    let direct = prt.render(&light, camera, 160, 120, &shading);
-                    let cached = prt.render_cached(&mut cache, &light, camera, 160, 120, &shading);
-                    let e = cached.relative_rmse(&direct).unwrap();
-                    assert!(e < 1e-6, "{mesh}, edge {max_edge_px}, view {k}: cached vs direct {e}");
-                    assert_eq!(cached.covered, direct.covered);
-                }
-                assert!(cache.cached_vertices() > 0, "{mesh}: the cache was filled");
-            }
-        }
-    }
-}
-
-/// Developer tool (not run by CI): renders one frame REPS times for profiling, e.g.
-/// `MESH=bunny PD=4 E=1 REPS=5 cargo test --test render profile_frame -- --ignored --nocapture`.
-#[test]
-#[ignore]
+/// Study: renders one frame REPS times for profiling, e.g.
+/// `cargo run --example render_studies -- profile_frame MESH=bunny PD=4 E=1 REPS=5`.
 fn profile_frame() {
-    let var = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
     let env = var("ENV", "studio_512");
     let (pd, e, reps): (f64, f64, usize) = (var("PD", "4").parse().unwrap(), var("E", "1").parse().unwrap(), var("REPS", "5").parse().unwrap());
@@ -370,7 +168,7 @@ fn profile_frame() {
     let mut camera = c.scene.cameras[0].clone();
     camera.aspect = w as f32 / h as f32;
     let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
-    if std::env::var("MODE").as_deref() == Ok("transfer") {
+    if arg("MODE").as_deref() == Ok("transfer") {
         let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
         let mut best = f64::MAX;
         let mut n = 0;
@@ -394,13 +192,11 @@ fn profile_frame() {
     println!("{mesh} {w}x{h} partition {pd}° edge {e}: {} points, subdivision {}, shading mesh {t_mesh:.3} s, frame best {best:.3} s", sm.points.len(), sm.subdivision);
 }
 
-/// Dev study (ignored): PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
+/// Study: PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
 /// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test render
 /// refine_study -- --ignored --nocapture`.
-#[test]
-#[ignore]
 fn refine_study() {
-    let spec = std::env::var("GLINT_REFINE").unwrap_or_else(|_| "teapot:0.05:128:3".into());
+    let spec = arg("GLINT_REFINE").unwrap_or_else(|_| "teapot:0.05:128:3".into());
     // One material per mesh, fitted on the mesh as imported, so that the rows differ only in the bake.
     let mut materials = std::collections::HashMap::new();
     for item in spec.split(',') {
@@ -442,68 +238,12 @@ fn refine_study() {
     }
 }
 
-/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with `None`):
-/// the accuracy matrix's measure (`glint::accuracy::masked_rel_rmse`).
-fn rmse_where(a: &glint::render::Image, b: &glint::render::Image, mask: Option<&[bool]>) -> f64 {
-    let all;
-    let mask = match mask {
-        Some(m) => m,
-        None => {
-            all = vec![true; b.pixels.len()];
-            &all
-        }
-    };
-    glint::accuracy::masked_rel_rmse(a, b, mask).0
-}
-
-/// One sharp ring lobe along the normal (isotropic-24 at the paper's σ, λ = 81, only θ_j = 0 set,
-/// scaled to a directional albedo of at most 0.9), ρd = 0.05, F0 = 0.04.
-fn one_sharp_lobe() -> glint::fit::material::Material {
-    use glint::sphere::srbf::{PAPER_SIGMA, lambda_from_sigma};
-    let lobes = glint::sphere::LobeSet::new(glint::sphere::LobeLayout::Isotropic { count: 24 }, lambda_from_sigma(PAPER_SIGMA).unwrap()).unwrap();
-    let mut c = vec![0.0; lobes.len()];
-    c[0] = 1.0;
-    let albedo = glint::brdf::energy::EnergyTable::cached(&lobes).albedo(&c, 0.04).into_iter().fold(0.0, f64::max);
-    c[0] = 0.9 / albedo;
-    glint::fit::material::Material::new(&lobes, PAPER_SIGMA, [c.clone(), c.clone(), c], [0.05; 3], 0.04, Default::default())
-}
-
-/// PRT (default settings, tabulated p) and Monte Carlo images of `m` for a case, a camera and a
-/// rotation, the reference on the mesh as imported (`imported`).
-struct Pair {
-    prt: glint::render::Image,
-    mc: glint::render::Image,
-    prt_secs: f64,
-    mc_secs: f64,
-}
-
-#[allow(clippy::too_many_arguments)]
-fn prt_and_mc(c: &Case, imported: &glint::scene::Mesh, m: &glint::fit::material::Material, camera: &glint::scene::Camera, rotation_deg: f64, w: u32, h: u32, spp: u32, settings: PrtSettings) -> Pair {
-    let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-    let rotation = rotation_deg.to_radians();
-    let light = LightSums::new(&c.env, &c.set, &c.tree, rotation);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    let t0 = std::time::Instant::now();
-    let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
-    let prt_secs = t0.elapsed().as_secs_f64();
-    let (_, tangents, _) = glint::bake::decisions::decide_frames(imported);
-    let tracer = glint::bake::Tracer::new(imported);
-    let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
-    let t0 = std::time::Instant::now();
-    let mc = render_reference(imported, tangents.as_deref(), &tracer, c.baker_offset, &c.env, rotation, material, camera, w, h, spp, 7);
-    Pair { prt: img, mc, prt_secs, mc_secs: t0.elapsed().as_secs_f64() }
-}
-
-/// Developer tool (not run by CI): issue 28's case (bunny under samples/studio_1k, orbit 20,15,2.5,
+/// Study: issue 28's case (bunny under samples/studio_1k, orbit 20,15,2.5,
 /// environment turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a
-/// time, and its worst pixels. `cargo test --test render sharp_lobe_diagnose -- --ignored --nocapture`
+/// time, and its worst pixels. `cargo run --example render_studies -- sharp_lobe_diagnose`
 /// (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
-#[test]
-#[ignore]
 fn sharp_lobe_diagnose() {
-    let var = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let t0 = std::time::Instant::now();
@@ -526,7 +266,7 @@ fn sharp_lobe_diagnose() {
         println!("{label:>36}: object {:.2} %, silhouette {:.2} %, interior {:.2} %", 100.0 * all, 100.0 * s, 100.0 * rmse_where(img, mc, Some(&interior)));
     };
     report("default", &base.prt);
-    if std::env::var("NOISE").is_ok() {
+    if arg("NOISE").is_ok() {
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&imported);
         let lobes = m.lobes().unwrap();
         let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
@@ -593,49 +333,7 @@ fn sharp_lobe_diagnose() {
     }
 }
 
-/// Issue 28: a sharp lobe seen at grazing angles. The bunny under samples/studio_1k, orbit 20,15,2.5,
-/// the environment turned 90°, one sharp ring lobe along n ([`one_sharp_lobe`]); the PRT frame (per
-/// pixel, the default) against the Monte Carlo reference over object pixels and over silhouette pixels
-/// (object pixels with a background 4-neighbour). With one 8° partition for every point and the
-/// pre-filter's geometric-mean spread the frame was 28.8 % off (silhouette 41.1 %); the peak-matched
-/// spread alone 17.9 % (25.5 %, the "one partition" row printed here); with the grazing tiers 5.9 %
-/// (8.2 %), which include the reference's own noise (2.2 % at 2048 spp). Not the issue's
-/// goal (2 % / 4 %): with every point at 1° partitions the floor is still 5.9 %, so what remains is
-/// not the partition (`sharp_lobe_diagnose` switches one ingredient at a time). `sharp_lobe_quadrature`
-/// finds it: neither visibility (the cuts' V against rays: 0.45 % at wo·n < 0.3) nor
-/// geometry, but the light's angular resolution: at wo·n ≈ 0.1 the lobe covers ≈ 2σ·wo·h ≈ 1° of wi
-/// across the plane of wi and wo, less than a leaf (1.4° at 64 per side), and both the per-leaf constant
-/// radiance (6.3 % at those pixels) and the BRDF taken once per leaf-sized node (5.5 % more against the
-/// PRT's own inputs) miss it; resolved inside leaves at those pixels only, the frame is 3.2 % off MC.
-#[test]
-fn sharp_lobe_at_grazing_views_against_monte_carlo() {
-    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
-    let c = case_at(&samples.join("bunny.glb"), &samples.join("studio_1k.exr"), true);
-    let imported = glint::scene::import(&samples.join("bunny.glb")).unwrap().mesh;
-    let m = one_sharp_lobe();
-    let (w, h) = (160, 120);
-    let camera = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
-    let pair = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 2048, PrtSettings::default());
-    let old = prt_and_mc(&c, &imported, &m, &camera, 90.0, w, h, 1, PrtSettings { grazing_tiers: false, ..PrtSettings::default() });
-    let sil = glint::accuracy::silhouette_mask(&pair.mc);
-    let (object, silhouette) = (rmse_where(&pair.prt, &pair.mc, None), rmse_where(&pair.prt, &pair.mc, Some(&sil)));
-    let (old_object, old_silhouette) = (rmse_where(&old.prt, &pair.mc, None), rmse_where(&old.prt, &pair.mc, Some(&sil)));
-    println!(
-        "sharp lobe, orbit: {} object pixels, {} silhouette; PRT {:.3} s (one partition {:.3} s), MC {:.1} s; PRT vs MC: object {:.2} %, silhouette {:.2} % (one partition: {:.2} %, {:.2} %)",
-        pair.mc.covered_count(),
-        sil.iter().filter(|&&s| s).count(),
-        pair.prt_secs,
-        old.prt_secs,
-        pair.mc_secs,
-        100.0 * object,
-        100.0 * silhouette,
-        100.0 * old_object,
-        100.0 * old_silhouette
-    );
-    assert!(object <= 0.065 && silhouette <= 0.09, "PRT vs MC: object {object}, silhouette {silhouette}");
-}
-
-/// Developer tool (not run by CI): issue 28's remaining error split by ingredient at chosen pixels, by
+/// Study: issue 28's remaining error split by ingredient at chosen pixels, by
 /// quadrature over the direction set's texels (k×k sub-directions each, env `K`, default 6; 4 suffices),
 /// green channel, noise-free: Q_mc = Σ L(d) V_ray(d) f_r(d) cos dω with L read as the reference reads it
 /// (nearest texel), on the imported mesh (what Monte Carlo estimates); on the PRT's (refined) mesh:
@@ -649,15 +347,13 @@ fn sharp_lobe_at_grazing_views_against_monte_carlo() {
 /// resolution; `ALL` prints every pixel. Bunny, rotation 90°, K = 4, wo·n < 0.3 (251
 /// pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5 %, Q with map L and cut V
 /// 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette 4.02 %; unpatched 5.92 / 8.23 %).
-/// `cargo test --test render sharp_lobe_quadrature -- --ignored --nocapture` (MESH, ORBIT, ROT, SPP).
-#[test]
-#[ignore]
+/// `cargo run --example render_studies -- sharp_lobe_quadrature` (MESH, ORBIT, ROT, SPP).
 fn sharp_lobe_quadrature() {
     use glam::{DVec3, Vec3A};
-    let var = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
-    let res: Option<usize> = std::env::var("RES").ok().map(|r| r.parse().unwrap());
+    let res: Option<usize> = arg("RES").ok().map(|r| r.parse().unwrap());
     let c = {
         let (mesh, env) = (samples.join(format!("{mesh}.glb")), samples.join("studio_1k.exr"));
         let scene = glint::scene::import(&mesh).unwrap();
@@ -818,7 +514,7 @@ fn sharp_lobe_quadrature() {
         if class == 2 {
             patched.set((k % w as usize) as u32, (k / w as usize) as u32, q_rgb.map(|x| x as f32));
         }
-        if class < 2 || std::env::var("ALL").is_ok() || (q[1] - q[0]).abs() > 0.03 * q[0] || (prt - q[3]).abs() > 0.1 * q[3] {
+        if class < 2 || arg("ALL").is_ok() || (q[1] - q[0]).abs() > 0.03 * q[0] || (prt - q[3]).abs() > 0.1 * q[3] {
             println!("({:3},{:3}) {} {:.3} {:.4} {:.4} {:.4} {:.4} {:.4} {:.4} | 1° {:.4} 1°np {:.4}", k % w as usize, k / w as usize, ["W", "R", "G"][class], won, mc, q[0], q[1], q[2], q[3], prt, p1, p1n);
         }
         agg[class][0] += (prt - q[3]).powi(2);

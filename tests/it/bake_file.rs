@@ -2,7 +2,7 @@
 //! older-version bake is detected, reported and rebuilt; `--json` carries the documented keys; baking
 //! the fit view's vertices first gives that view the same transfer as the full bake.
 
-mod common;
+use crate::common;
 
 use glint::bake::{BakeSettings, Baker, Cuts, file};
 use glint::light::LightSums;

@@ -6,7 +6,7 @@
 //! `tests/qp.rs`), texel sanitising and counting (`tests/env_maps.rs`, `tests/cli_inspect.rs`),
 //! missing and degenerate normals (`tests/gltf_import.rs`, `src/scene/geometry.rs`).
 
-mod common;
+use crate::common;
 
 use glam::{DVec3, Vec3};
 use glint::bake::{BakeSettings, Baker};
