@@ -9,9 +9,10 @@
 //! 90°. Each (mesh, map) is baked once with the default settings (and its decisions); each case's
 //! reference is rendered on the imported mesh, as `glint render --reference` does.
 //!
-//! Inputs: scenes and maps (the caller loads them), [`MatrixOptions`]. Outputs: [`MatrixRow`]s and
-//! their Markdown/CSV ([`markdown`], [`csv`]). Invariants: references are seeded, so two runs give the
-//! same errors; no IO (the CLI writes the report).
+//! Inputs: scenes and maps ([`run`]: the caller loads them; [`run_study`]: the bundled samples and
+//! the shared assets, read here), [`MatrixOptions`]. Outputs: [`MatrixRow`]s and their Markdown/CSV
+//! ([`markdown`], [`csv`]; [`run_study`] writes them). Invariants: references are seeded, so two runs
+//! give the same errors.
 
 use crate::bake::{BakeSettings, Baker, Tracer};
 use crate::env::EnvMap;
@@ -20,6 +21,7 @@ use crate::light::LightSums;
 use crate::render::{ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table};
 use crate::scene::{Bounds, Camera, Mesh, Scene, default_camera, orbit_camera};
 use crate::sphere::{LobeLayout, LobeSet, srbf};
+use crate::study::StudyError;
 use std::time::Instant;
 
 /// How big a matrix to run.
@@ -36,6 +38,73 @@ impl MatrixOptions {
     pub const FULL: MatrixOptions = MatrixOptions { size: (128, 96), spp: 1024 };
     /// A small one (CI): 64×48, 1024 spp.
     pub const QUICK: MatrixOptions = MatrixOptions { size: (64, 48), spp: 1024 };
+}
+
+/// What `glint study --matrix` did: the rows, the report's title and the files written.
+pub struct MatrixStudy {
+    pub rows: Vec<MatrixRow>,
+    pub title: String,
+    pub written: Vec<std::path::PathBuf>,
+}
+
+impl MatrixStudy {
+    /// One line: how many cases meet 2 % (object pixels) and 4 % (silhouette pixels), and the worst.
+    pub fn summary(&self) -> String {
+        let ok = self.rows.iter().filter(|r| r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)).count();
+        let worst = self.rows.iter().max_by(|a, b| a.rel_rmse.total_cmp(&b.rel_rmse));
+        let worst = worst.map(|r| format!("; worst {:.2} %: {} under {}, {}, {}°, {}", 100.0 * r.rel_rmse, r.mesh, r.map, r.view, r.rotation_deg, r.material));
+        format!("{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}", self.rows.len(), worst.unwrap_or_default())
+    }
+}
+
+/// `glint study --matrix`: loads the meshes and maps (the bundled samples; dragon_100k and the
+/// interior map from `assets`; `quick`: the bunny and the brushed sphere under the studio map), runs
+/// the matrix and writes matrix.md and matrix.csv into `out`.
+pub fn run_study(samples: &std::path::Path, assets: &std::path::Path, quick: bool, out: &std::path::Path, progress: &dyn Fn(usize, usize, &str)) -> Result<MatrixStudy, StudyError> {
+    let need = |p: std::path::PathBuf| if p.is_file() { Ok(p) } else { Err(StudyError::Input(format!("the accuracy matrix needs {} (see --assets)", p.display()))) };
+    let mut meshes = vec![("bunny", need(samples.join("bunny.glb"))?, None)];
+    if !quick {
+        meshes.push(("teapot", need(samples.join("teapot.glb"))?, None));
+        meshes.push(("suzanne", need(samples.join("suzanne.glb"))?, None));
+        meshes.push(("dragon_100k patch", need(assets.join("glb/dragon_100k.glb"))?, Some(0.3)));
+    }
+    meshes.push(("brushed sphere", need(samples.join("brushed_sphere.glb"))?, None));
+    let mut maps = vec![("studio", need(samples.join("studio_1k.exr"))?)];
+    if !quick {
+        maps.push(("courtyard", need(samples.join("courtyard_1k.exr"))?));
+        maps.push(("interior", need(assets.join("hdr/interior_1k.exr"))?));
+    }
+    let mut scenes = Vec::new();
+    for (name, path, fraction) in meshes {
+        let mut scene = crate::scene::import(&path)?;
+        if let Some(f) = fraction {
+            scene.mesh = patch(&scene.mesh, f);
+            scene.bounds = Bounds::from_points(&scene.mesh.positions).ok_or_else(|| StudyError::Input(format!("{}: the patch is empty", path.display())))?;
+        }
+        scenes.push((name.to_string(), scene));
+    }
+    let envs = maps.into_iter().map(|(n, p)| Ok((n.to_string(), crate::env::load(&p)?))).collect::<Result<Vec<_>, StudyError>>()?;
+    let options = if quick { MatrixOptions::QUICK } else { MatrixOptions::FULL };
+    let start = Instant::now();
+    let rows = run(&scenes, &envs, options, progress)?;
+    let title = format!(
+        "glint accuracy matrix: PRT frame vs Monte Carlo reference, {}x{}, {} spp{} — {} cases, {:.0} s on {} threads",
+        options.size.0,
+        options.size.1,
+        options.spp,
+        if quick { " (quick)" } else { "" },
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
+    );
+    std::fs::create_dir_all(out).map_err(|e| StudyError::Write { path: out.display().to_string(), reason: e.to_string() })?;
+    let mut written = Vec::new();
+    for (name, text) in [("matrix.md", markdown(&rows, &title)), ("matrix.csv", csv(&rows))] {
+        let p = out.join(name);
+        glint_exporters::write_atomic(&p, text.as_bytes()).map_err(|e| StudyError::Write { path: p.display().to_string(), reason: e.to_string() })?;
+        written.push(p);
+    }
+    Ok(MatrixStudy { rows, title, written })
 }
 
 /// One case of the matrix.
@@ -160,7 +229,7 @@ pub fn patch(mesh: &Mesh, fraction: f32) -> Mesh {
 }
 
 /// Runs the matrix over every (scene, map) pair; `progress(done, total, what)`.
-pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: MatrixOptions, progress: &dyn Fn(usize, usize, &str)) -> Result<Vec<MatrixRow>, crate::study::StudyError> {
+pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: MatrixOptions, progress: &dyn Fn(usize, usize, &str)) -> Result<Vec<MatrixRow>, StudyError> {
     let (w, h) = options.size;
     let mut rows = Vec::new();
     let total = scenes.len() * maps.len();

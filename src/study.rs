@@ -22,7 +22,7 @@ use crate::bake::{Bake, BakeSettings, Baker, Tracer};
 use crate::env::EnvMap;
 use crate::fit::material::Material;
 use crate::brdf::EnergyTable;
-use crate::fit::run::{FitSettings, camera_for, default_layout, fit};
+use crate::fit::run::{Baked, FitSettings, camera_for, default_layout, fit};
 use crate::fit::strokes::ViewStrokes;
 use crate::light::LightSums;
 use crate::render::{ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table};
@@ -86,6 +86,12 @@ pub enum StudyError {
     NoView,
     #[error("writing {path}: {reason}")]
     Write { path: String, reason: String },
+    #[error(transparent)]
+    Scene(#[from] crate::scene::ImportError),
+    #[error(transparent)]
+    Env(#[from] crate::env::EnvError),
+    #[error("{0}")]
+    Input(String),
 }
 
 /// Transfers and frames are timed this many times and the fastest kept: the first run of a process
@@ -299,7 +305,7 @@ pub fn run(scene: &Scene, env: &EnvMap, strokes: &[ViewStrokes], options: &Study
         if !fits.contains_key(&fit_key) {
             let fit_settings = FitSettings { layout: k.layout, sigma: k.sigma, fit_size: k.fit_size, ..FitSettings::default() };
             let t0 = Instant::now();
-            let outcome = fit(&b.scene, env, &b.bake.cuts, b.bake.decisions.resolution, b.tangents.as_deref(), anisotropic, strokes, &fit_settings)?;
+            let outcome = fit(&Baked { scene: &b.scene, env, cuts: &b.bake.cuts, resolution: b.bake.decisions.resolution, tangents: b.tangents.as_deref(), anisotropic }, strokes, &fit_settings)?;
             let fit_total = t0.elapsed().as_secs_f64();
             // The transfer alone, for the first view at the fit resolution (fit_total includes it).
             let lobes = outcome.material.lobes()?;

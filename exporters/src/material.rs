@@ -81,6 +81,25 @@ pub struct PbrFallback {
     pub relative_error: f64,
 }
 
+impl PbrFallback {
+    /// One line for people: the parameters and the error against the fitted BRDF (`isotropic`: the
+    /// material is; an anisotropic material that got an isotropic fallback says why).
+    pub fn summary(&self, isotropic: bool) -> String {
+        let [r, g, b] = self.base_color;
+        let anisotropy = match self.anisotropy {
+            Some((strength, rotation)) => format!("; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"),
+            None if isotropic => String::new(),
+            None => " (isotropic fallback: an anisotropic one fitted no better)".to_string(),
+        };
+        format!(
+            "glTF/USD fallback (pbrMetallicRoughness): base colour [{r:.3}, {g:.3}, {b:.3}], metallic {:.2}, roughness {:.3}; relative RMS error against the fitted BRDF {:.1} %{anisotropy}",
+            self.metallic,
+            self.roughness,
+            self.relative_error * 100.0
+        )
+    }
+}
+
 /// A triangle mesh to carry the material (positions in metres, Y up, counter-clockwise front faces).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SceneMesh {

@@ -53,6 +53,15 @@ impl SceneCamera {
         Ok(())
     }
 
+    /// The camera as `glint render --json` prints it (docs/conventions.md §4).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "name": self.name, "eye": self.eye, "forward": self.forward, "up": self.up, "right": self.right(),
+            "yfov_deg": self.yfov_rad.to_degrees(), "width": self.width, "height": self.height,
+            "znear": self.znear, "zfar": self.zfar, "pixel_centres": true,
+        })
+    }
+
     /// The camera's +X (image right): forward × up.
     pub fn right(&self) -> [f64; 3] {
         let (f, u) = (self.forward, self.up);

@@ -8,32 +8,28 @@
 //! picture). Outputs: preview frames (linear
 //! [`Image`]s with the environment behind the object), fitted [`Material`]s with their p(h) table and
 //! timings, exported files.
-//! Invariants: calls only the library's public stage functions (transfer, strokes, the per-channel
-//! QP, tabulation, the GPU preview, the exporters); a view's transfer is computed once per (view,
-//! rotation, σ, J, F0) and kept; the three channels are solved in parallel by
-//! `fit::problem::solve_rgb_from`, each warm-started from the previous fit's active set (on the first
-//! fit, green and blue from red's; the solver is exact from any start, so only the time changes); the strokes paint over the
-//! diffuse rendering (c = 0) exactly as `glint fit` does, so the same strokes give the same material.
+//! Invariants: calls only the library's public stage functions (the fitting context, tabulation, the
+//! GPU preview, the exporters); fits run in one [`FitSession`], the type `glint fit` uses, so a
+//! view's transfer is computed once per (view, rotation, σ, layout, F0) and kept, each solve is
+//! warm-started from the previous fit's active sets, and the same strokes give the same material as
+//! `glint fit`.
 
 use super::AppError;
 use super::state::Document;
 use crate::bake::Cuts;
-use crate::brdf::EnergyTable;
 use crate::env::EnvMap;
-use crate::fit::material::{FitStats, Material};
-use crate::fit::problem::{ViewData, solve_rgb_from};
-use crate::fit::qp::Constraint;
+use crate::export::{Provenance, Tool};
+use crate::fit::material::Material;
 use crate::fit::run::camera_for;
-use crate::fit::strokes::{ViewSpec, targets};
+use crate::fit::session::{FitInputs, FitSession};
+use crate::fit::strokes::ViewSpec;
 use crate::gpu::{GpuContext, GpuPreview};
 use crate::light::LightSums;
 use crate::render::prt::ShadingMesh;
 use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, VertexLight, table};
 use crate::scene::{Camera, Scene};
-use crate::sphere::{DirectionSet, LightTree, LobeSet, srbf};
-use crate::transfer::{Transfer, TransferContext};
+use crate::sphere::{DirectionSet, LightTree};
 use glam::Vec4;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -117,13 +113,6 @@ fn baked_mesh<'a>(scene: &'a Scene, tangents: &'a Option<Vec<Vec4>>, refined: &'
     }
 }
 
-/// Lobes, energy rows and the key they were built for.
-struct LobeCache {
-    key: (u64, usize),
-    lobes: LobeSet,
-    energy: Option<EnergyTable>,
-}
-
 /// The engine (see the module docs).
 pub struct Engine {
     scene: Arc<Scene>,
@@ -155,9 +144,8 @@ pub struct Engine {
     light: Option<(f64, LightSums)>,
     /// The environment prepared for light sums (kept across rotations; dropped with the environment).
     light_source: Option<crate::light::LightSource>,
-    lobes: Option<LobeCache>,
-    transfers: HashMap<String, Transfer>,
-    warm: Option<[Vec<Constraint>; 3]>,
+    /// Lobes, energy rows, transfers and the warm start, kept across fits.
+    session: FitSession,
     /// ρd, F0 and the table on the GPU now (re-uploaded when the preview is rebuilt).
     shown: Option<([f64; 3], f64, Option<PhTable>)>,
     material: Option<Material>,
@@ -207,9 +195,7 @@ impl Engine {
             view_mesh: None,
             light: None,
             light_source: None,
-            lobes: None,
-            transfers: HashMap::new(),
-            warm: None,
+            session: FitSession::default(),
             shown: None,
             material: None,
         })
@@ -245,8 +231,7 @@ impl Engine {
     pub fn set_bake(&mut self, cuts: Cuts, refined: Refined) -> Result<(), AppError> {
         if let Some(r) = refined {
             self.refined = Some(r);
-            self.transfers.clear();
-            self.warm = None;
+            self.session.forget_transfers();
         }
         let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
         if cuts.vertex_count() != mesh.positions.len() {
@@ -291,7 +276,7 @@ impl Engine {
         self.env_path = path.to_path_buf();
         self.light = None;
         self.light_source = None;
-        self.transfers.clear();
+        self.session.forget_transfers();
         Ok(())
     }
 
@@ -311,44 +296,9 @@ impl Engine {
         Ok(())
     }
 
-    fn ensure_lobes(&mut self, doc: &Document) -> Result<(), AppError> {
-        let s = &doc.settings;
-        let layout = s.layout(self.anisotropic);
-        let key = (s.sigma.to_bits(), layout.count());
-        if self.lobes.as_ref().is_some_and(|l| l.key == key) {
-            return Ok(());
-        }
-        let lambda = srbf::lambda_from_sigma(s.sigma).map_err(|e| AppError::Stage(e.to_string()))?;
-        let lobes = LobeSet::new(layout, lambda).map_err(|e| AppError::Stage(e.to_string()))?;
-        self.lobes = Some(LobeCache { key, energy: None, lobes });
-        self.transfers.clear();
-        self.warm = None;
-        Ok(())
-    }
-
     /// The camera of a view at an image size.
     pub fn camera(&self, view: &ViewSpec, size: [u32; 2]) -> Result<Camera, AppError> {
         camera_for(&self.scene, view, size).map_err(|e| AppError::Stage(e.to_string()))
-    }
-
-    /// Computes (once) the transfer of a view for the document's settings; returns its cache key and
-    /// fit size.
-    fn ensure_transfer(&mut self, doc: &Document, view: &ViewSpec, image_size: [u32; 2]) -> Result<(String, (u32, u32)), AppError> {
-        let s = &doc.settings;
-        let fit_size = ((image_size[0] / 4).max(1), (image_size[1] / 4).max(1));
-        // Keyed by the camera itself: a view named by camera name or by index is one view.
-        let camera = self.camera(view, image_size)?;
-        let key = format!("{:?}|{}|{fit_size:?}|{}|{}|{}|{}", camera.world_from_camera, camera.yfov_rad, s.env_rotation_deg, s.sigma, s.lobe_count, s.f0);
-        if !self.transfers.contains_key(&key) {
-            let (Some(cuts), Some(lobes), Some((_, light))) = (&self.cuts, &self.lobes, &self.light) else {
-                return Err(AppError::NotReady("cuts, lobes and light come before a transfer"));
-            };
-            let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
-            let ctx = TransferContext::new(mesh, cuts, &self.tree, &lobes.lobes, tangents, None);
-            let transfer = ctx.compute(light, &camera, fit_size.0, fit_size.1, s.f0);
-            self.transfers.insert(key.clone(), transfer);
-        }
-        Ok((key, fit_size))
     }
 
     /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and the
@@ -356,15 +306,12 @@ impl Engine {
     pub fn prepare(&mut self, doc: &Document, view: &ViewSpec, size: [u32; 2]) -> Result<f64, AppError> {
         let start = Instant::now();
         self.ensure_light(doc.settings.env_rotation_deg)?;
-        self.ensure_lobes(doc)?;
-        if let Some(l) = self.lobes.as_mut()
-            && doc.settings.energy_limit
-            && l.energy.is_none()
-        {
-            l.energy = Some(EnergyTable::with_defaults(&l.lobes));
-        }
-        // The view as a name and as an index are the same camera; strokes may name either.
-        self.ensure_transfer(doc, view, size)?;
+        let settings = doc.settings.fit_settings(self.anisotropic);
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+        let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a fit"))?;
+        let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
+        let inputs = FitInputs { scene: &self.scene, mesh, tangents, anisotropic: self.anisotropic, cuts, tree: &self.tree, light };
+        self.session.prepare(&inputs, view, size, &settings).map_err(|e| AppError::Stage(e.to_string()))?;
         Ok(start.elapsed().as_secs_f64())
     }
 
@@ -415,66 +362,21 @@ impl Engine {
     pub fn fit(&mut self, doc: &Document) -> Result<FitResult, AppError> {
         let s = &doc.settings;
         s.validate().map_err(AppError::Settings)?;
-        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
-        let _ = cuts;
         self.ensure_light(s.env_rotation_deg)?;
-        self.ensure_lobes(doc)?;
-        let mut timings = FitTimings::default();
-        let views = doc.fit_views();
-        let start = Instant::now();
-        // Transfers of views not seen before.
-        let mut cameras = Vec::with_capacity(views.len());
-        for v in &views {
-            cameras.push(self.ensure_transfer(doc, &v.view, v.image_size)?);
-        }
-        // Set by ensure_lobes above; an error rather than a panic should that ever change.
-        let lobes = self.lobes.as_mut().ok_or(AppError::NotReady("the lobes come before a fit"))?;
-        let j = lobes.lobes.len();
-        if s.energy_limit && lobes.energy.is_none() {
-            lobes.energy = Some(EnergyTable::with_defaults(&lobes.lobes));
-        }
-        timings.transfer_secs = start.elapsed().as_secs_f64();
-        let solve_start = Instant::now();
-        let zero = vec![0.0; j];
-        let mut target_sets = Vec::with_capacity(views.len());
-        let (mut off_object, mut strokes) = (0, 0);
-        for (v, (key, fit_size)) in views.iter().zip(&cameras) {
-            let transfer = &self.transfers[key];
-            let current = transfer.render(s.rho_d, [&zero, &zero, &zero]);
-            let pixels: Vec<(u32, u32)> = transfer.pixels.iter().map(|p| (p.x, p.y)).collect();
-            let t = targets(v, &pixels, *fit_size, &current);
-            off_object += t.off_object.len();
-            strokes += v.strokes.len();
-            target_sets.push(t);
-        }
-        let data: Vec<ViewData> =
-            cameras.iter().zip(&target_sets).map(|((key, _), t)| ViewData { transfer: &self.transfers[key], target: &t.target, weight: &t.weight }).collect();
-        let pixels: usize = data.iter().map(|d| d.transfer.pixels.len()).sum();
-        let mut stats = FitStats { pixels, views: views.len(), energy_limit: s.energy_limit, strokes_off_object: off_object, ..FitStats::default() };
-        if off_object > 0 {
-            stats.notes.push(format!("{off_object} stroke(s) touched no pixel of the object and were ignored"));
-        }
-        let coefficients: [Vec<f64>; 3] = if strokes == off_object || pixels == 0 {
-            stats.notes.push("no stroke touched the object: diffuse only".into());
-            [zero.clone(), zero.clone(), zero.clone()]
-        } else {
-            let energy = if s.energy_limit { lobes.energy.as_ref().map(|e| (e, s.f0)) } else { None };
-            let fits = solve_rgb_from(&data, energy, s.rho_d, self.warm.as_ref()).map_err(|e| AppError::Stage(e.to_string()))?;
-            stats.residual_rms = std::array::from_fn(|c| fits[c].residual_rms);
-            stats.active_energy_rows = std::array::from_fn(|c| fits[c].active_energy_rows);
-            stats.active_constraints = std::array::from_fn(|c| fits[c].active.len());
-            stats.iterations = std::array::from_fn(|c| fits[c].iterations);
-            self.warm = Some(std::array::from_fn(|c| fits[c].active.clone()));
-            std::array::from_fn(|c| fits[c].coefficients.clone())
-        };
-        stats.solve_seconds = solve_start.elapsed().as_secs_f64();
-        timings.solve_secs = stats.solve_seconds;
-        let material = Material::new(&lobes.lobes, s.sigma, coefficients, s.rho_d, s.f0, stats);
+        let settings = s.fit_settings(self.anisotropic);
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+        let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a fit"))?;
+        let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
+        let inputs = FitInputs { scene: &self.scene, mesh, tangents, anisotropic: self.anisotropic, cuts, tree: &self.tree, light };
+        let outcome = self.session.fit(&inputs, &doc.fit_views(), &settings).map_err(|e| AppError::Stage(e.to_string()))?;
+        let material = outcome.material;
+        let mut timings = FitTimings { transfer_secs: outcome.transfer_seconds, solve_secs: material.fit.solve_seconds, ..FitTimings::default() };
+        let lobes = material.lobes().map_err(|e| AppError::Stage(e.to_string()))?;
         let table_start = Instant::now();
         let specular = material.coefficients.iter().flatten().any(|c| *c > 0.0);
         let table = specular.then(|| {
             let c = &material.coefficients;
-            PhTable::build(&lobes.lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lobes.lambda()))
+            PhTable::build(&lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lambda()))
         });
         if let Some(gpu) = &mut self.gpu {
             gpu.set_material(s.rho_d, s.f0, table.as_ref())?;
@@ -496,11 +398,8 @@ impl Engine {
     /// Writes every export format of the last material into `dir` (the scene's mesh in glTF and USD).
     pub fn export(&self, dir: &Path, name: &str) -> Result<Vec<PathBuf>, AppError> {
         let material = self.material.as_ref().ok_or(AppError::NotReady("nothing is fitted yet"))?;
-        let mut provenance = std::collections::BTreeMap::new();
-        provenance.insert("tool".into(), format!("glint {} app", env!("CARGO_PKG_VERSION")));
-        provenance.insert("scene_file".into(), self.scene.source.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
-        provenance.insert("env_file".into(), self.env_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default());
-        provenance.insert("fit_residual_rms".into(), format!("{:?}", material.fit.residual_rms));
+        let mut provenance = Provenance::new(Tool::App, material);
+        provenance.scene_file(&self.scene.source).env_file(&self.env_path).env_rotation_deg(self.light.as_ref().map_or(0.0, |(r, _)| r.to_degrees()));
         let desc = crate::export::material_desc(material, name, crate::export::EXPORT_TABLE_RESOLUTION, provenance).map_err(|e| AppError::Stage(e.to_string()))?;
         let mesh = crate::export::scene_mesh(&self.scene.mesh, self.tangents.as_deref());
         std::fs::create_dir_all(dir).map_err(|e| AppError::Io { path: dir.to_path_buf(), reason: e.to_string() })?;

@@ -97,6 +97,19 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The fit settings these app settings stand for (the lobe layout from J and the frame).
+    pub fn fit_settings(&self, anisotropic: bool) -> crate::fit::run::FitSettings {
+        crate::fit::run::FitSettings {
+            rho_d: self.rho_d,
+            f0: self.f0,
+            energy_limit: self.energy_limit,
+            layout: Some(self.layout(anisotropic)),
+            sigma: self.sigma,
+            fit_size: None,
+            rotation_rad: self.env_rotation_deg.to_radians(),
+        }
+    }
+
     /// The lobe layout for a scene with or without a tangent field: `lobe_count` rings, or the
     /// hemicube n×n×3 nearest to `lobe_count` (n ≥ 2).
     pub fn layout(&self, anisotropic: bool) -> LobeLayout {

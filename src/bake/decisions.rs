@@ -81,6 +81,22 @@ pub struct Decisions {
     pub interpolated_vertices: usize,
 }
 
+impl Decisions {
+    /// Each decision and its reason, as `glint bake` prints them (`refined`: the mesh was refined).
+    pub fn summary(&self, refined: bool) -> Vec<(String, &str)> {
+        let boundary = if self.boundary_levels > 0 { format!("{} boundary level(s)", self.boundary_levels) } else { "no boundary refinement".into() };
+        vec![
+            ((if self.trace_visibility { "trace visibility" } else { "no ray tracing" }).into(), self.trace_reason.as_str()),
+            ((if self.anisotropic { "anisotropic frame" } else { "isotropic fit" }).into(), &self.frame_reason),
+            (format!("{} directions ({} per face)", 6 * self.resolution * self.resolution, self.resolution), &self.resolution_reason),
+            (format!("visibility cells of {}°", self.cell_deg), &self.cell_reason),
+            (boundary, &self.boundary_reason),
+            ((if refined { "refined mesh" } else { "mesh as it is" }).into(), &self.refine_reason),
+            ((if self.interpolated_vertices > 0 { "vertex sampling" } else { "every vertex traced" }).into(), &self.sampling_reason),
+        ]
+    }
+}
+
 /// (a): (trace?, reason).
 pub fn decide_occlusion(positions: &[DVec3], normals: &[DVec3], offset: f64, tracer: &Tracer) -> (bool, String) {
     let blocked = positions

@@ -188,3 +188,68 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
     }
     Ok((header, Cuts { offsets, nodes, visibility }, refinement))
 }
+
+/// What [`bake_or_reuse`] did.
+pub struct BakeOutcome {
+    /// The header of the bake now on disk.
+    pub header: BakeHeader,
+    /// Whether a matching bake was already there (nothing was traced).
+    pub reused: bool,
+    /// Why an existing bake was not reused (other inputs or settings, or unreadable), in words.
+    pub rebuild_reason: Option<String>,
+}
+
+/// Why [`bake_or_reuse`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BakeRunError {
+    #[error(transparent)]
+    File(#[from] BakeFileError),
+    #[error(transparent)]
+    Bake(#[from] super::BakeError),
+}
+
+/// Bakes `scene` under `env` into `dir/bake.glint` (and `bake.json`), unless a bake there was made
+/// from files with the same hashes and the same settings (and `force` is off): then it is reused.
+/// `scene_path` and `env_path` are the files `scene` and `env` were read from (their hashes and
+/// absolute paths go into the header). `progress` receives the number of vertices baked.
+#[allow(clippy::too_many_arguments)] // the inputs of a bake, each needed and of a different kind
+pub fn bake_or_reuse(
+    scene: &crate::scene::Scene,
+    env: &crate::env::EnvMap,
+    scene_path: &Path,
+    env_path: &Path,
+    dir: &Path,
+    settings: BakeSettings,
+    force: bool,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<BakeOutcome, BakeRunError> {
+    let scene_hash = hash_file(scene_path)?;
+    let env_hash = hash_file(env_path)?;
+    let existing = dir.join("bake.glint");
+    let mut rebuild_reason = None;
+    if existing.exists() && !force {
+        match read(&existing) {
+            Ok((header, _, _)) if header.scene_hash == scene_hash && header.env_hash == env_hash && header.settings == settings => {
+                return Ok(BakeOutcome { header, reused: true, rebuild_reason: None });
+            }
+            Ok(_) => rebuild_reason = Some(format!("{} was made from other inputs or settings; rebuilding", existing.display())),
+            Err(e) => rebuild_reason = Some(format!("{e}; rebuilding")),
+        }
+    }
+    let baker = super::Baker::new(scene, env, settings)?;
+    let bake = baker.bake_refined(None, progress);
+    let header = BakeHeader {
+        format_version: FORMAT_VERSION,
+        glint_version: env!("CARGO_PKG_VERSION").into(),
+        scene_file: std::path::absolute(scene_path).unwrap_or_else(|_| scene_path.to_path_buf()),
+        env_file: std::path::absolute(env_path).unwrap_or_else(|_| env_path.to_path_buf()),
+        scene_hash,
+        env_hash,
+        settings,
+        decisions: bake.decisions.clone(),
+        stats: bake.stats.clone(),
+        vertex_count: bake.cuts.vertex_count(),
+    };
+    write(dir, &header, &bake.cuts, &bake.refinement)?;
+    Ok(BakeOutcome { header, reused: false, rebuild_reason })
+}

@@ -15,6 +15,7 @@
 pub mod cuts;
 pub mod decisions;
 pub mod file;
+pub mod loaded;
 pub mod refine;
 pub mod runs;
 pub mod sparse;
@@ -30,6 +31,7 @@ use glam::{DVec3, Vec4};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 pub use runs::{Span, for_each_run};
+pub use loaded::{LoadBakeError, LoadedBake};
 pub use tracer::Tracer;
 
 /// Bake parameters (each a knob of the accuracy study).

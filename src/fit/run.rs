@@ -1,23 +1,19 @@
 //! Running a fit from a bake and a stroke file: views → cameras → transfer → targets → per-channel
-//! solves → a [`Material`].
+//! solves → a [`Material`](super::material::Material), in a fresh [`FitSession`].
 //!
-//! Inputs: the scene, the environment, the bake's cuts and decisions, parsed strokes, [`FitSettings`].
-//! Output: the material and what was fitted (for `--dump-qp`). No IO (the CLI reads and writes).
-//! Invariants: the current rendering B' that strokes paint over is the diffuse one (c = 0), as the
-//! paper starts; strokes off the object are counted and ignored; no strokes at all return the current
-//! (zero-specular) material and say so.
+//! Inputs: a [`Baked`] scene (from a [`LoadedBake`] or built in memory), parsed strokes,
+//! [`FitSettings`]. Output: the material and what was fitted (for `--dump-qp`). No IO (the CLI reads
+//! and writes). Invariants: those of [`FitSession::fit`].
 
-use super::material::{FitStats, Material};
-use super::problem::{ChannelFit, ViewData, solve_rgb};
 use super::qp::QpError;
-use super::strokes::{ViewSpec, ViewStrokes, targets};
-use crate::bake::Cuts;
-use crate::brdf::EnergyTable;
+pub use super::session::{FitOutcome, FittedView};
+use super::session::{FitInputs, FitSession};
+use super::strokes::{ViewSpec, ViewStrokes};
+use crate::bake::{Cuts, LoadedBake};
 use crate::env::EnvMap;
 use crate::light::LightSums;
 use crate::scene::{Camera, Scene, orbit_camera};
-use crate::sphere::{DirectionSet, LightTree, LobeLayout, LobeSet, SphereError, srbf};
-use crate::transfer::{Transfer, TransferContext};
+use crate::sphere::{DirectionSet, LightTree, LobeLayout, SphereError, srbf};
 use glam::Vec4;
 
 /// The user's parameters of a fit.
@@ -56,23 +52,6 @@ pub enum FitError {
     Qp(#[from] QpError),
 }
 
-/// One fitted view.
-pub struct FittedView {
-    pub camera: Camera,
-    pub fit_size: (u32, u32),
-    pub transfer: Transfer,
-    pub target: Vec<[f64; 3]>,
-    pub weight: Vec<f64>,
-}
-
-/// Everything a fit produced.
-pub struct FitOutcome {
-    pub material: Material,
-    pub views: Vec<FittedView>,
-    pub energy: Option<EnergyTable>,
-    pub channels: Vec<ChannelFit>,
-}
-
 /// The camera a stroke view names, sized to the stroke file's image.
 pub fn camera_for(scene: &Scene, view: &ViewSpec, image_size: [u32; 2]) -> Result<Camera, FitError> {
     let names = || scene.cameras.iter().map(|c| c.name.clone()).collect::<Vec<_>>().join(", ");
@@ -92,78 +71,46 @@ pub fn default_layout(anisotropic: bool) -> LobeLayout {
     if anisotropic { LobeLayout::PAPER } else { LobeLayout::Isotropic { count: 24 } }
 }
 
-/// Runs the fit.
-#[allow(clippy::too_many_arguments)]
-pub fn fit(
-    scene: &Scene,
-    env: &EnvMap,
-    cuts: &Cuts,
-    resolution: usize,
-    tangents: Option<&[Vec4]>,
-    anisotropic: bool,
-    strokes: &[ViewStrokes],
-    settings: &FitSettings,
-) -> Result<FitOutcome, FitError> {
-    if settings.rho_d.iter().any(|r| !(0.0..=1.0).contains(r)) || !(0.0..=1.0).contains(&settings.f0) {
-        return Err(FitError::Settings(format!("rho_d {:?} and f0 {} must lie in [0, 1]", settings.rho_d, settings.f0)));
+/// A bake as a one-shot fit reads it: the scene (its mesh is the one the cuts belong to), the
+/// environment, the cuts, the direction set's resolution and the frames.
+#[derive(Clone, Copy)]
+pub struct Baked<'a> {
+    pub scene: &'a Scene,
+    pub env: &'a EnvMap,
+    pub cuts: &'a Cuts,
+    /// Directions per cube face of the bake's direction set.
+    pub resolution: usize,
+    pub tangents: Option<&'a [Vec4]>,
+    pub anisotropic: bool,
+}
+
+impl<'a> From<&'a LoadedBake> for Baked<'a> {
+    fn from(b: &'a LoadedBake) -> Self {
+        Self {
+            scene: &b.scene,
+            env: &b.env,
+            cuts: &b.cuts,
+            resolution: b.header.decisions.resolution,
+            tangents: b.tangents.as_deref(),
+            anisotropic: b.header.decisions.anisotropic,
+        }
     }
-    let lambda = srbf::lambda_from_sigma(settings.sigma)?;
-    let layout = settings.layout.unwrap_or_else(|| default_layout(anisotropic));
-    if !layout.is_isotropic() && !anisotropic {
-        return Err(FitError::Settings(format!("layout {} is anisotropic but the scene has no tangent field", layout.name())));
-    }
-    let lobes = LobeSet::new(layout, lambda)?;
-    let set = DirectionSet::cube(resolution)?;
+}
+
+/// Runs one fit in a fresh [`FitSession`]: the light sums at the settings' rotation, each view's
+/// transfer, one solve per channel.
+pub fn fit(baked: &Baked, strokes: &[ViewStrokes], settings: &FitSettings) -> Result<FitOutcome, FitError> {
+    let set = DirectionSet::cube(baked.resolution)?;
     let tree = LightTree::build(&set);
-    let light = LightSums::new(env, &set, &tree, settings.rotation_rad);
-    let ctx = TransferContext::new(&scene.mesh, cuts, &tree, &lobes, tangents, None);
-    let mut views = Vec::new();
-    let mut off_object = 0;
-    let mut stroke_count = 0;
-    for v in strokes {
-        let camera = camera_for(scene, &v.view, v.image_size)?;
-        let fit_size = settings.fit_size.unwrap_or(((v.image_size[0] / 4).max(1), (v.image_size[1] / 4).max(1)));
-        let transfer = ctx.compute(&light, &camera, fit_size.0, fit_size.1, settings.f0);
-        // The rendering strokes paint over: diffuse only.
-        let zero = vec![0.0; lobes.len()];
-        let current = transfer.render(settings.rho_d, [&zero, &zero, &zero]);
-        let pixels: Vec<(u32, u32)> = transfer.pixels.iter().map(|p| (p.x, p.y)).collect();
-        let t = targets(v, &pixels, fit_size, &current);
-        off_object += t.off_object.len();
-        stroke_count += v.strokes.len();
-        views.push(FittedView { camera, fit_size, target: t.target, weight: t.weight, transfer });
-    }
-    let mut notes = Vec::new();
-    if off_object > 0 {
-        notes.push(format!("{off_object} stroke(s) touched no pixel of the object and were ignored"));
-    }
-    let pixels: usize = views.iter().map(|v| v.transfer.pixels.len()).sum();
-    let active_strokes = stroke_count - off_object;
-    if active_strokes == 0 || pixels == 0 {
-        notes.push("no stroke touched the object: the current material (diffuse, no specular lobes) is returned unchanged".into());
-        let stats = FitStats { pixels, views: views.len(), energy_limit: settings.energy_limit, strokes_off_object: off_object, notes, ..FitStats::default() };
-        let zero = vec![0.0; lobes.len()];
-        let material = Material::new(&lobes, settings.sigma, [zero.clone(), zero.clone(), zero], settings.rho_d, settings.f0, stats);
-        return Ok(FitOutcome { material, views, energy: None, channels: Vec::new() });
-    }
-    let energy = settings.energy_limit.then(|| EnergyTable::clone(&EnergyTable::cached(&lobes)));
-    let start = std::time::Instant::now();
-    let data: Vec<ViewData> = views.iter().map(|v| ViewData { transfer: &v.transfer, target: &v.target, weight: &v.weight }).collect();
-    let channels = solve_rgb(&data, energy.as_ref().map(|e| (e, settings.f0)), settings.rho_d)?;
-    let solve_seconds = start.elapsed().as_secs_f64();
-    let stats = FitStats {
-        residual_rms: std::array::from_fn(|c| channels[c].residual_rms),
-        active_energy_rows: std::array::from_fn(|c| channels[c].active_energy_rows),
-        active_constraints: std::array::from_fn(|c| channels[c].active.len()),
-        iterations: std::array::from_fn(|c| channels[c].iterations),
-        solve_seconds,
-        pixels,
-        views: views.len(),
-        energy_limit: settings.energy_limit,
-        strokes_off_object: off_object,
-        notes,
+    let light = LightSums::new(baked.env, &set, &tree, settings.rotation_rad);
+    let inputs = FitInputs {
+        scene: baked.scene,
+        mesh: &baked.scene.mesh,
+        tangents: baked.tangents,
+        anisotropic: baked.anisotropic,
+        cuts: baked.cuts,
+        tree: &tree,
+        light: &light,
     };
-    let coefficients = std::array::from_fn(|c| channels[c].coefficients.clone());
-    let material = Material::new(&lobes, settings.sigma, coefficients, settings.rho_d, settings.f0, stats);
-    Ok(FitOutcome { material, views, energy, channels })
+    FitSession::default().fit(&inputs, strokes, settings)
 }

@@ -38,3 +38,35 @@ pub enum GpuError {
     #[error("wgpu reported an error: {reason}")]
     Wgpu { reason: String },
 }
+
+/// Why `glint render --gpu` cannot render.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuFrameError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Frame(#[from] crate::render::frame::FrameError),
+}
+
+/// `glint render --gpu`: the PRT frame from the wgpu preview (vertex shading, on the first adapter),
+/// as [`crate::render::frame::prt_frame`] draws it on the CPU.
+pub fn preview_frame(
+    bake: &crate::bake::LoadedBake,
+    material: &crate::fit::material::Material,
+    camera: &crate::scene::Camera,
+    (w, h): (u32, u32),
+    rotation_rad: f64,
+) -> Result<(crate::render::Image, String), GpuFrameError> {
+    use crate::render::{PrtSettings, table};
+    let lobes = crate::render::frame::material_lobes(bake, material)?;
+    let (set, tree) = bake.light_tree().map_err(crate::render::frame::FrameError::from)?;
+    let ctx = GpuContext::headless()?;
+    let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() };
+    let mut preview = GpuPreview::new(&ctx, &bake.scene.mesh, &bake.cuts, &tree, bake.tangents.as_deref(), settings)?;
+    let c = &material.coefficients;
+    let t = table::PhTable::build(&lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lambda()));
+    preview.set_light(&crate::light::LightSums::new(&bake.env, &set, &tree, rotation_rad), &tree)?;
+    preview.set_material(material.rho_d, material.f0, Some(&t))?;
+    let img = preview.render(camera, w, h)?;
+    Ok((img, format!("wgpu PRT preview on {}, p(h) table {}²", ctx.describe(), t.resolution())))
+}

@@ -4,6 +4,7 @@
 //! - [`table`]: p(h) on the hemi-octahedral map, with pre-filtered levels.
 //! - [`prt`]: eq. 22 per vertex, then raster interpolation — what every frame costs.
 //! - [`reference`]: exact visibility by ray casting, exact lobes, the environment map itself, MIS.
+//! - [`frame`]: a material on a bake as `glint render` renders it (the PRT frame or the reference).
 //! - [`image`]: linear images, relative RMSE, EXR and tone-mapped PNG output (atomic).
 //!
 //! Inputs: the bake (cuts, light tree, tangents), light sums or the environment, a material, a camera.
@@ -11,6 +12,7 @@
 //! cosine; s with the 4); renderers do no IO except [`image::Image::write`]; results do not depend on
 //! the thread count.
 
+pub mod frame;
 pub mod image;
 pub mod prt;
 pub mod reference;

@@ -39,6 +39,7 @@ mod container;
 mod error;
 mod geometry;
 mod subdivide;
+pub mod view;
 
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};

@@ -8,7 +8,7 @@ use glint::bake::{BakeSettings, Baker};
 use glint::env::EnvMap;
 use glint::fit::problem::{ChannelSystem, ViewData, normal_equations};
 use glint::fit::qp::{QpProblem, kkt_residuals};
-use glint::fit::run::{FitSettings, fit};
+use glint::fit::run::{Baked, FitSettings, fit};
 use glint::fit::strokes::{self, ViewStrokes};
 use glint::light::LightSums;
 use glint::scene::Scene;
@@ -77,7 +77,7 @@ fn real_problems_match_clarabel_and_satisfy_kkt() {
     for mesh in ["bunny", "teapot"] {
         let (scene, bake, n) = setup(mesh, &env);
         for (label, json) in [("bright", BRIGHT), ("moderate", MODERATE)] {
-            let out = fit(&scene, &env, &bake.cuts, n, None, false, &strokes(json), &FitSettings::default()).unwrap();
+            let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &strokes(json), &FitSettings::default()).unwrap();
             let energy = out.energy.as_ref().unwrap();
             let j = out.material.centres.len();
             let g = energy.matrix(0.04);
@@ -119,23 +119,23 @@ fn empty_and_off_object_strokes_are_handled_and_reported() {
     let env = courtyard();
     let (scene, bake, n) = setup("teapot", &env);
     let empty = strokes(r#"{"view": "default", "image_size": [640, 480], "strokes": []}"#);
-    let out = fit(&scene, &env, &bake.cuts, n, None, false, &empty, &FitSettings::default()).unwrap();
+    let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &empty, &FitSettings::default()).unwrap();
     assert!(out.material.coefficients.iter().flatten().all(|&c| c == 0.0));
     assert!(out.material.fit.notes.iter().any(|s| s.contains("no stroke")), "{:?}", out.material.fit.notes);
     let off = strokes(r#"{"view": "default", "image_size": [640, 480], "strokes": [
         {"points": [[2, 2], [10, 4]], "mode": "paint", "color": [5, 5, 5], "radius": 3, "kappa": 0.1}]}"#);
-    let out = fit(&scene, &env, &bake.cuts, n, None, false, &off, &FitSettings::default()).unwrap();
+    let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &off, &FitSettings::default()).unwrap();
     assert_eq!(out.material.fit.strokes_off_object, 1);
     assert!(out.material.fit.notes.iter().any(|s| s.contains("ignored")));
     // A stroke on the object plus one off it: the good one is fitted, the other counted.
     let mut mixed = strokes(BRIGHT);
     mixed[0].strokes.push(off[0].strokes[0].clone());
-    let out = fit(&scene, &env, &bake.cuts, n, None, false, &mixed, &FitSettings::default()).unwrap();
+    let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &mixed, &FitSettings::default()).unwrap();
     assert_eq!(out.material.fit.strokes_off_object, 1);
     assert!(out.material.coefficients.iter().flatten().any(|&c| c > 0.0));
     // An unknown camera is a clear error.
     let bad = strokes(r#"{"view": "nope", "image_size": [640, 480], "strokes": []}"#);
-    let err = fit(&scene, &env, &bake.cuts, n, None, false, &bad, &FitSettings::default()).err().unwrap().to_string();
+    let err = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &bad, &FitSettings::default()).err().unwrap().to_string();
     assert!(err.contains("nope") && err.contains("default"), "{err}");
 }
 
@@ -155,8 +155,8 @@ fn hard_environments_and_lobe_widths_converge_deterministically() {
     ] {
         let (scene, bake, n) = setup("teapot", env);
         let settings = FitSettings { sigma, ..FitSettings::default() };
-        let a = fit(&scene, env, &bake.cuts, n, None, false, &strokes(BRIGHT), &settings).unwrap();
-        let b = fit(&scene, env, &bake.cuts, n, None, false, &strokes(BRIGHT), &settings).unwrap();
+        let a = fit(&Baked { scene: &scene, env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &strokes(BRIGHT), &settings).unwrap();
+        let b = fit(&Baked { scene: &scene, env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &strokes(BRIGHT), &settings).unwrap();
         assert_eq!(a.material.coefficients, b.material.coefficients, "{label}: not deterministic");
         let energy = a.energy.as_ref().unwrap();
         for c in 0..3 {
@@ -173,8 +173,8 @@ fn without_the_energy_limit_only_non_negativity_holds() {
     let env = courtyard();
     let (scene, bake, n) = setup("teapot", &env);
     let settings = FitSettings { energy_limit: false, ..FitSettings::default() };
-    let free = fit(&scene, &env, &bake.cuts, n, None, false, &strokes(BRIGHT), &settings).unwrap();
-    let bound = fit(&scene, &env, &bake.cuts, n, None, false, &strokes(BRIGHT), &FitSettings::default()).unwrap();
+    let free = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &strokes(BRIGHT), &settings).unwrap();
+    let bound = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: n, tangents: None, anisotropic: false }, &strokes(BRIGHT), &FitSettings::default()).unwrap();
     assert!(free.material.coefficients.iter().flatten().all(|&c| c >= 0.0));
     // The unconstrained fit matches the bright paint better than the physical one can.
     for c in 0..3 {

@@ -6,7 +6,7 @@
 use crate::common;
 
 use glint::bake::{BakeSettings, Baker};
-use glint::fit::run::{FitSettings, fit};
+use glint::fit::run::{Baked, FitSettings, fit};
 use glint::gpu::{GpuContext, GpuPreview};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, ShadingPoint, Specular};
@@ -60,7 +60,7 @@ fn compare(ctx: &GpuContext, mesh: &str) {
     let bake = baker.bake_all(None, &|_| {});
     let tangents = baker.tangents.clone();
     let views = glint::fit::strokes::parse(STROKES).unwrap();
-    let m = fit(&scene, &env, &bake.cuts, bake.decisions.resolution, tangents.as_deref(), bake.decisions.anisotropic, &views, &FitSettings::default()).unwrap().material;
+    let m = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: bake.decisions.resolution, tangents: tangents.as_deref(), anisotropic: bake.decisions.anisotropic }, &views, &FitSettings::default()).unwrap().material;
     let lobes = m.lobes().unwrap();
     let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));

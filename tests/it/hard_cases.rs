@@ -11,7 +11,7 @@ use crate::common;
 use glam::{DVec3, Vec3};
 use glint::bake::{BakeSettings, Baker};
 use glint::env::EnvMap;
-use glint::fit::run::{FitSettings, fit};
+use glint::fit::run::{Baked, FitSettings, fit};
 use glint::light::LightSums;
 use glint::math::GaussLegendre;
 use glint::render::prt::{Prt, PrtSettings, Shading, ShadingPoint, Specular};
@@ -372,7 +372,7 @@ fn single_triangle_scene_furnace_and_fit() {
     )
     .unwrap();
     let settings = FitSettings { layout: Some(LobeLayout::Isotropic { count: 12 }), ..FitSettings::default() };
-    let out = fit(&scene, &env, &bake.cuts, bake.decisions.resolution, None, false, &strokes, &settings).unwrap();
+    let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: bake.decisions.resolution, tangents: None, anisotropic: false }, &strokes, &settings).unwrap();
     let coefficients = &out.material.coefficients;
     assert!(coefficients.iter().flatten().all(|x| x.is_finite() && *x >= 0.0));
     let view = &out.views[0];
@@ -399,7 +399,7 @@ fn object_covering_one_pixel_fits_and_renders() {
     )
     .unwrap();
     let settings = FitSettings { fit_size: Some((161, 121)), layout: Some(LobeLayout::Isotropic { count: 24 }), ..FitSettings::default() };
-    let out = fit(&scene, &env, &bake.cuts, 16, None, false, &strokes, &settings).unwrap();
+    let out = fit(&Baked { scene: &scene, env: &env, cuts: &bake.cuts, resolution: 16, tangents: None, anisotropic: false }, &strokes, &settings).unwrap();
     let view = &out.views[0];
     assert_eq!(view.transfer.pixels.len(), 1, "the sphere must cover exactly one pixel");
     let m = &out.material;

@@ -6,7 +6,7 @@ use crate::common;
 
 use glint::bake::{BakeSettings, Baker};
 use glint::env::EnvMap;
-use glint::fit::run::{FitSettings, fit};
+use glint::fit::run::{Baked, FitSettings, fit};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
@@ -53,7 +53,7 @@ pub const STROKES: &str = include_str!("../../samples/strokes/bunny-highlight.js
 /// Fits the sample strokes (a highlight painted on the default view) and returns the material.
 pub fn fitted(c: &Case) -> glint::fit::material::Material {
     let views = glint::fit::strokes::parse(STROKES).unwrap();
-    let outcome = fit(&c.scene, &c.env, &c.bake.cuts, c.bake.decisions.resolution, c.tangents.as_deref(), c.bake.decisions.anisotropic, &views, &FitSettings::default()).unwrap();
+    let outcome = fit(&Baked { scene: &c.scene, env: &c.env, cuts: &c.bake.cuts, resolution: c.bake.decisions.resolution, tangents: c.tangents.as_deref(), anisotropic: c.bake.decisions.anisotropic }, &views, &FitSettings::default()).unwrap();
     let m = outcome.material;
     assert!(m.coefficients.iter().flatten().any(|&x| x > 0.0), "the strokes must produce a specular lobe");
     m

@@ -1,0 +1,280 @@
+//! The command line's arguments (clap): what each subcommand takes, with its help text.
+
+use std::path::PathBuf;
+
+#[derive(clap::Parser)]
+#[command(name = "glint", version, about = "Paint highlights on a glTF object under an HDR environment; glint solves for the physically valid BRDF that renders them.")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(clap::Subcommand)]
+pub enum Command {
+    /// Report what a glTF scene (and optionally an environment map) imports as.
+    Inspect {
+        /// The scene: .glb or .gltf.
+        scene: PathBuf,
+        /// An equirectangular environment map: .exr or .hdr.
+        #[arg(long)]
+        env: Option<PathBuf>,
+        /// Print one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Bake per-vertex visibility cuts (reused when the inputs and settings are unchanged).
+    Bake(BakeArgs),
+    /// Fit the BRDF to painted strokes.
+    Fit(FitArgs),
+    /// Render a fitted material: the PRT frame (tabulated p), or the Monte Carlo reference.
+    Render(RenderArgs),
+    /// Export a fitted material: p(h) EXR table, glTF (.glb), USD (.usda), MERL (.binary), and a
+    /// Mitsuba 3 scene (with --scene and --env, or --bake).
+    Export(ExportArgs),
+    /// The painting app: paint highlights on the object, glint fits the BRDF on release.
+    App(AppArgs),
+    /// Accuracy against time: sweep each accuracy knob from the defaults; write study.csv, study.svg
+    /// (error against time, Pareto front) and study.md.
+    Study(StudyArgs),
+    /// The headless main job on the bundled sample: bake, fit the sample strokes, render, export.
+    Demo(DemoArgs),
+}
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The bake made by `glint bake` (its folder or its bake.glint).
+    pub bake: PathBuf,
+    /// The material made by `glint fit`.
+    #[arg(long)]
+    pub material: PathBuf,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Render the Monte Carlo reference with this many samples per pixel instead of the PRT frame.
+    #[arg(long, conflicts_with = "gpu")]
+    pub reference: Option<u32>,
+    /// Render the PRT frame with the wgpu preview (vertex shading, on the first GPU adapter; Mesa's
+    /// lavapipe where there is no GPU) instead of the CPU.
+    #[arg(long)]
+    pub gpu: bool,
+    /// Exposure applied before tone mapping (PNG only).
+    #[arg(long, default_value_t = 1.0)]
+    pub exposure: f32,
+    /// Output image: .exr (linear) or .png (tone-mapped).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The view and light of a render or a scene export (docs/conventions.md §4–5).
+#[derive(clap::Args)]
+pub struct ViewArgs {
+    /// A camera of the scene, by name (default: the first camera, or the default camera).
+    #[arg(long, conflicts_with = "orbit")]
+    pub camera: Option<String>,
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub orbit: Option<Vec<f32>>,
+    /// Environment rotation about +Y in degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub rotate: f64,
+    /// Image size WxH (default: the camera's).
+    #[arg(long)]
+    pub size: Option<String>,
+}
+
+#[derive(clap::Args)]
+pub struct AppArgs {
+    /// The scene: .glb or .gltf (default: the bundled bunny).
+    pub scene: Option<PathBuf>,
+    /// Equirectangular environment map: .exr or .hdr (default: the bundled studio map).
+    #[arg(long)]
+    pub env: Option<PathBuf>,
+    /// Replay a stroke file (the `glint fit --strokes` format) once the first view is baked.
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
+    /// Draw the app offscreen (no window, no display needed) after the replay's fit, write this PNG and
+    /// exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Window size in points for --screenshot, WxH.
+    #[arg(long, default_value = "1280x760")]
+    pub size: String,
+    /// Load this session (saved by the app) once the first view is baked.
+    #[arg(long)]
+    pub session: Option<PathBuf>,
+    /// Where the session is saved after every edit.
+    #[arg(long, default_value = ".glint-autosave.json")]
+    pub autosave: PathBuf,
+    /// Do not autosave.
+    #[arg(long)]
+    pub no_autosave: bool,
+    /// What draws the preview: auto (the wgpu preview on a hardware adapter, the CPU PRT frame where
+    /// the only adapter is a software rasteriser such as llvmpipe), cpu or gpu.
+    #[arg(long, default_value = "auto")]
+    pub preview: glint::app::PreviewChoice,
+}
+
+#[derive(clap::Args)]
+pub struct ExportArgs {
+    /// The material made by `glint fit`.
+    pub material: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long)]
+    pub to: Option<PathBuf>,
+    /// Formats, comma-separated (default: all; see --list).
+    #[arg(long, value_delimiter = ',')]
+    pub formats: Vec<String>,
+    /// Put the material on this scene's mesh in the glTF, USD and Mitsuba files (default: a preview
+    /// sphere), with the view as a camera.
+    #[arg(long, conflicts_with = "bake")]
+    pub scene: Option<PathBuf>,
+    /// Take the scene, its environment and tangent frames from this bake (what `glint render` renders:
+    /// the refined mesh), instead of --scene and --env.
+    #[arg(long)]
+    pub bake: Option<PathBuf>,
+    /// The environment map that lights the Mitsuba scene (.exr or .hdr).
+    #[arg(long, conflicts_with = "bake")]
+    pub env: Option<PathBuf>,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Resolution of the p(h) table.
+    #[arg(long, default_value_t = glint::export::EXPORT_TABLE_RESOLUTION)]
+    pub table_resolution: usize,
+    /// List the formats and exit.
+    #[arg(long)]
+    pub list: bool,
+}
+
+#[derive(clap::Args)]
+pub struct DemoArgs {
+    /// Output folder.
+    #[arg(long, default_value = "demo-out")]
+    pub out: PathBuf,
+}
+
+#[derive(clap::Args)]
+pub struct BakeArgs {
+    /// The scene: .glb or .gltf.
+    pub scene: PathBuf,
+    /// Equirectangular environment map (.exr or .hdr); decides how fine the direction set must be.
+    #[arg(long)]
+    pub env: PathBuf,
+    /// Output folder (default: ./<scene name>.bake).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Direction-set resolution per cube face (default: decided from the environment).
+    #[arg(long)]
+    pub resolution: Option<usize>,
+    /// Cut error bound ε (mean |Ṽ error| per cut node).
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
+    pub epsilon: f64,
+    /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
+    /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the reason).
+    #[arg(long)]
+    pub cell_deg: Option<f64>,
+    /// Times a visibility cell beside a cell of the other visibility (a shadow edge) is traced again as
+    /// cells half as wide (0: off). Default: decided with the cell size (2 where small bright lights
+    /// cast sharp shadows, else 0).
+    #[arg(long)]
+    pub boundary_levels: Option<u32>,
+    /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
+    pub trace_leaves: usize,
+    /// Rounds of adaptive refinement: edges whose ends' visibility differs are split and the new
+    /// vertices traced (0: bake the mesh as it is).
+    #[arg(long, default_value_t = glint::bake::RefineSettings::default().rounds)]
+    pub refine_rounds: u32,
+    /// Split an edge when its ends' visibility differs by more than this fraction of the irradiance.
+    #[arg(long, default_value_t = glint::bake::RefineSettings::default().threshold)]
+    pub refine_threshold: f64,
+    /// Trace every vertex (no vertex sampling: by default a vertex of a dense mesh whose traced
+    /// neighbours agree within the refine threshold is interpolated from them).
+    #[arg(long)]
+    pub trace_every_vertex: bool,
+    /// Cap on the nodes of one vertex's cut.
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().max_cut)]
+    pub max_cut: usize,
+    /// A camera of the scene, by name (default: the first camera, or the default camera).
+    #[arg(long, conflicts_with = "orbit")]
+    pub camera: Option<String>,
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub orbit: Option<Vec<f32>>,
+    /// Fit resolution WxH (default: a quarter of the view in each axis, 160x120 for 640x480).
+    #[arg(long)]
+    pub fit_size: Option<String>,
+    /// Rebuild even if a matching bake exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct FitArgs {
+    /// The bake made by `glint bake` (its folder or its bake.glint).
+    pub bake: PathBuf,
+    /// The stroke file (JSON; schema in src/fit/strokes.schema.json).
+    #[arg(long)]
+    pub strokes: PathBuf,
+    /// Where to write the material (lobe table JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the problem and its solution as .npy files (T, B, w, E, energy rows, bounds, c) and
+    /// meta.json into this folder.
+    #[arg(long)]
+    pub dump_qp: Option<PathBuf>,
+    /// Diffuse albedo r,g,b (not fitted).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,0.5,0.5")]
+    pub rho_d: Vec<f64>,
+    /// Schlick F0.
+    #[arg(long, default_value_t = 0.04)]
+    pub f0: f64,
+    /// Drop the energy rows: a physically impossible BRDF on purpose (c ≥ 0 still holds).
+    #[arg(long)]
+    pub no_energy_limit: bool,
+    /// Fit resolution WxH (default: a quarter of each stroke view's image size).
+    #[arg(long)]
+    pub fit_size: Option<String>,
+    /// Environment rotation about +Y in degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub rotate: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of a subcommand that this build does not have yet: accepted, then refused clearly.
+#[derive(clap::Args)]
+pub struct StudyArgs {
+    /// The scene (default: the bundled bunny).
+    #[arg(long, default_value = "samples/bunny.glb")]
+    pub scene: PathBuf,
+    /// The environment (default: the bundled studio).
+    #[arg(long, default_value = "samples/studio_1k.exr")]
+    pub env: PathBuf,
+    /// The fixed stroke set every setting is fitted to.
+    #[arg(long, default_value = "samples/strokes/bunny-highlight.json")]
+    pub strokes: PathBuf,
+    /// Fewer settings, an 80×60 frame and a 256-spp truth: minutes → well under 2 minutes (for CI).
+    /// With --matrix: the bunny and the brushed sphere under the studio map, at 64×48 and 1024 spp.
+    #[arg(long)]
+    pub quick: bool,
+    /// The accuracy matrix instead: the PRT frame against the Monte Carlo reference over meshes
+    /// (bunny, teapot, suzanne, a patch of dragon_100k, the brushed sphere) × maps (studio,
+    /// courtyard, interior) × views (default, orbit, grazing) × rotations (0°, 90°) × materials
+    /// (sharp, broad, anisotropic where the mesh has tangents); writes matrix.md and matrix.csv.
+    #[arg(long)]
+    pub matrix: bool,
+    /// Where the matrix finds dragon_100k.glb (glb/) and interior_1k.exr (hdr/).
+    #[arg(long, default_value = "../shared/assets")]
+    pub assets: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+
