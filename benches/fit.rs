@@ -1,9 +1,10 @@
 //! Fit benchmarks (issue #4): `cargo bench --bench fit`. Prints median times over repeated runs.
 //!
-//! Problems: the real transfer of the bunny under courtyard (default view, isotropic J = 24) at the fit
-//! resolution 160×120 and at full resolution 640×480; and transfers of the same size with J = 147 and
-//! J = 300 lobes (the paper's anisotropic count and a finer one), built from a UV sphere with a tangent
-//! field so that anisotropic lobes apply. 256 energy rows (anisotropic) / 33 (isotropic).
+//! Problems: the real transfer of the bunny under courtyard (default view, isotropic J = 24) at the
+//! fit resolution 160×120 and at full resolution 640×480; and transfers of the same size with J =
+//! 147 and J = 300 lobes (the paper's anisotropic count and a finer one), built from a UV sphere
+//! with a tangent field so that anisotropic lobes apply. 256 energy rows (anisotropic) / 33
+//! (isotropic).
 
 use glint::bake::{BakeSettings, Baker};
 use glint::fit::problem::{ViewData, normal_equations, solve_rgb};
@@ -15,7 +16,7 @@ use glint::transfer::{Transfer, TransferContext};
 use std::path::Path;
 use std::time::Instant;
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common.rs"]
 mod common;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -24,18 +25,46 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    median((0..reps).map(|_| { let t = Instant::now(); std::hint::black_box(f()); t.elapsed().as_secs_f64() * 1e3 }).collect())
+    median(
+        (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                std::hint::black_box(f());
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .collect(),
+    )
 }
 
-fn transfer_for(scene: &Scene, env: &glint::env::EnvMap, layout: LobeLayout, size: (u32, u32)) -> (Transfer, LobeSet) {
-    let baker = Baker::new(scene, env, BakeSettings { resolution: Some(32), ..BakeSettings::default() }).unwrap();
+fn transfer_for(
+    scene: &Scene,
+    env: &glint::env::EnvMap,
+    layout: LobeLayout,
+    size: (u32, u32),
+) -> (Transfer, LobeSet) {
+    let baker = Baker::new(
+        scene,
+        env,
+        BakeSettings {
+            resolution: Some(32),
+            ..BakeSettings::default()
+        },
+    )
+    .unwrap();
     let bake = baker.bake_all(None, &|_| {});
     let lobes = LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
     let light = LightSums::new(env, &baker.set, &baker.tree, 0.0);
     let mut camera = scene.cameras[0].clone();
     camera.width = size.0 * 4;
     camera.height = size.1 * 4;
-    let ctx = TransferContext::new(&scene.mesh, &bake.cuts, &baker.tree, &lobes, baker.tangents.as_deref(), None);
+    let ctx = TransferContext::new(
+        &scene.mesh,
+        &bake.cuts,
+        &baker.tree,
+        &lobes,
+        baker.tangents.as_deref(),
+        None,
+    );
     (ctx.compute(&light, &camera, size.0, size.1, 0.04), lobes)
 }
 
@@ -48,21 +77,56 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
     // A bright stroke's worth of targets over a third of the pixels, keep weight elsewhere.
     let zero = vec![0.0; lobes.len()];
     let current = transfer.render([0.5; 3], [&zero, &zero, &zero]);
-    let target: Vec<[f64; 3]> = current.iter().enumerate().map(|(i, b)| if i % 3 == 0 { [b[0] + 1.5, b[1] + 1.2, b[2] + 1.0] } else { *b }).collect();
+    let target: Vec<[f64; 3]> = current
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            if i % 3 == 0 {
+                [b[0] + 1.5, b[1] + 1.2, b[2] + 1.0]
+            } else {
+                *b
+            }
+        })
+        .collect();
     let weight: Vec<f64> = (0..n).map(|i| if i % 3 == 0 { 1.0 } else { 0.1 }).collect();
-    let data = [ViewData { transfer, target: &target, weight: &weight }];
-    let form = time(5, || (0..3).map(|c| normal_equations(&data, c, 0.5)).collect::<Vec<_>>());
-    let cold = time(5, || solve_rgb(&data, Some((&energy, 0.04)), [0.5; 3]).unwrap());
+    let data = [ViewData {
+        transfer,
+        target: &target,
+        weight: &weight,
+    }];
+    let form = time(5, || {
+        (0..3)
+            .map(|c| normal_equations(&data, c, 0.5))
+            .collect::<Vec<_>>()
+    });
+    let cold = time(5, || {
+        solve_rgb(&data, Some((&energy, 0.04)), [0.5; 3]).unwrap()
+    });
     // Warm and hot re-solves after a small stroke (q changes by a few % on 10 % of the lobes).
     let eq = normal_equations(&data, 0, 0.5);
-    let solver = QpSolver::new(&eq.h, eq.j, &energy.matrix(0.04), &vec![0.5; energy.rows()], energy.rows()).unwrap();
+    let solver = QpSolver::new(
+        &eq.h,
+        eq.j,
+        &energy.matrix(0.04),
+        &vec![0.5; energy.rows()],
+        energy.rows(),
+    )
+    .unwrap();
     let q: Vec<f64> = eq.r.iter().map(|x| -x).collect();
     let first = solver.solve(&q, None).unwrap();
     let plain = solver.solve_unseeded(&q).unwrap();
     let cold_seeded = time(5, || solver.solve(&q, None).unwrap());
     let cold_plain = time(5, || solver.solve_unseeded(&q).unwrap());
-    let rows = first.active.iter().filter(|c| matches!(c, glint::fit::qp::Constraint::Row(_))).count();
-    let q2: Vec<f64> = q.iter().enumerate().map(|(i, x)| if i % 10 == 0 { x * 1.03 } else { *x }).collect();
+    let rows = first
+        .active
+        .iter()
+        .filter(|c| matches!(c, glint::fit::qp::Constraint::Row(_)))
+        .count();
+    let q2: Vec<f64> = q
+        .iter()
+        .enumerate()
+        .map(|(i, x)| if i % 10 == 0 { x * 1.03 } else { *x })
+        .collect();
     let warm = time(20, || solver.solve(&q2, Some(&first.active)).unwrap());
     let mut hot = HotStart::default();
     let _ = solver.solve_hot(&q, &mut hot).unwrap();

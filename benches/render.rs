@@ -1,13 +1,13 @@
-//! Render benchmarks (issue #5): `cargo bench --bench render`. Prints median times of the CPU PRT frame
-//! (shade the view's points, interpolate; 2 threads here) and of building the p(h) table.
+//! Render benchmarks (issue #5): `cargo bench --bench render`. Prints median times of the CPU PRT
+//! frame (shade the view's points, interpolate; 2 threads here) and of building the p(h) table.
 //!
-//! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k, baked
-//! with the default settings; an isotropic material with three ring lobes (J = 24, σ = π/40); the
-//! scene's default camera at 160×120 and 640×480; the default shading density (every covered pixel
-//! shaded at its own point), 1-pixel shading triangles and vertex shading only. Then the wgpu preview (vertex shading) on the first adapter:
-//! on a machine without a GPU that is Mesa's lavapipe, which says nothing of a GPU's speed; the table
-//! says which adapter ran. Frame = shade + raster + readback of the image (the app skips the readback);
-//! light = the per-rotation upload.
+//! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k,
+//! baked with the default settings; an isotropic material with three ring lobes (J = 24, σ = π/40);
+//! the scene's default camera at 160×120 and 640×480; the default shading density (every covered
+//! pixel shaded at its own point), 1-pixel shading triangles and vertex shading only. Then the wgpu
+//! preview (vertex shading) on the first adapter: on a machine without a GPU that is Mesa's
+//! lavapipe, which says nothing of a GPU's speed; the table says which adapter ran. Frame = shade +
+//! raster + readback of the image (the app skips the readback); light = the per-rotation upload.
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -16,7 +16,7 @@ use glint::render::table::{PhTable, default_resolution};
 use glint::sphere::{LobeLayout, LobeSet, srbf};
 use std::time::Instant;
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common.rs"]
 mod common;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -25,31 +25,75 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    median((0..reps).map(|_| { let t = Instant::now(); std::hint::black_box(f()); t.elapsed().as_secs_f64() }).collect())
+    median(
+        (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                std::hint::black_box(f());
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    )
 }
 
 fn main() {
-    let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let lobes = LobeSet::new(
+        LobeLayout::Isotropic { count: 24 },
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
+    )
+    .unwrap();
     let mut c = vec![0.0; lobes.len()];
     (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
     let coefficients = [c.as_slice(), c.as_slice(), c.as_slice()];
-    let t_table = time(5, || PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda())));
+    let t_table = time(5, || {
+        PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()))
+    });
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    println!("p(h) table {}² with {} filtered levels ({:.1} MB): build {:.1} ms", table.resolution(), table.level_count(), table.bytes() as f64 / 1e6, t_table * 1e3);
-    let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
+    println!(
+        "p(h) table {}² with {} filtered levels ({:.1} MB): build {:.1} ms",
+        table.resolution(),
+        table.level_count(),
+        table.bytes() as f64 / 1e6,
+        t_table * 1e3
+    );
+    let shading = Shading {
+        rho_d: [0.5; 3],
+        f0: 0.04,
+        specular: Specular::Table(&table),
+    };
     let mut gpu_rows = Vec::new();
     println!("| scene | vertices | size | shading | subdivision | points | frame (s) | fps |");
     println!("|---|---|---|---|---|---|---|---|");
-    for (mesh, env) in [("bunny", "hdr/small/studio_512.exr"), ("dragon_100k", "hdr/courtyard_1k.exr")] {
-        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+    for (mesh, env) in [
+        ("bunny", "hdr/small/studio_512.exr"),
+        ("dragon_100k", "hdr/courtyard_1k.exr"),
+    ] {
+        let scene =
+            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         let env = glint::env::load(&common::assets().join(env)).unwrap();
         let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
         let bake = baker.bake_refined(None, &|_| {});
         let scene = bake.scene(&scene).unwrap();
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
-        for (label, max_edge_px, partition_deg, per_pixel) in [("vertices", 0.0, default_deg, false), ("vertices", 0.0, 16.0, false), ("1-px triangles", 1.0, default_deg, false), ("per pixel (default)", 1.0, default_deg, true)] {
-            let prt = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px, partition_deg, per_pixel, ..PrtSettings::default() });
+        for (label, max_edge_px, partition_deg, per_pixel) in [
+            ("vertices", 0.0, default_deg, false),
+            ("vertices", 0.0, 16.0, false),
+            ("1-px triangles", 1.0, default_deg, false),
+            ("per pixel (default)", 1.0, default_deg, true),
+        ] {
+            let prt = Prt::new(
+                &scene.mesh,
+                &bake.cuts,
+                &baker.tree,
+                None,
+                PrtSettings {
+                    max_edge_px,
+                    partition_deg,
+                    per_pixel,
+                    ..PrtSettings::default()
+                },
+            );
             let label = format!("{label}, {partition_deg}° partition");
             for (w, h) in [(160, 120), (640, 480)] {
                 let mut camera = scene.cameras[0].clone();
@@ -57,15 +101,26 @@ fn main() {
                 let sm = prt.shading_mesh(&camera, w, h);
                 let reps = if sm.points.len() > 100_000 { 1 } else { 3 };
                 let secs = time(reps, || prt.render(&light, &camera, w, h, &shading));
-                println!("| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |", scene.mesh.positions.len(), sm.subdivision, sm.points.len(), 1.0 / secs);
+                println!(
+                    "| {mesh} | {} | {w}×{h} | {label} | {} | {} | {secs:.3} | {:.1} |",
+                    scene.mesh.positions.len(),
+                    sm.subdivision,
+                    sm.points.len(),
+                    1.0 / secs
+                );
                 if max_edge_px == 0.0 && !per_pixel {
-                    // The per-vertex light cached (what a new view or a new material reuses; the app's
-                    // CPU preview): the first frame fills it, later frames evaluate the BRDF only.
+                    // The per-vertex light cached (what a new view or a new material reuses; the
+                    // app's CPU preview): the first frame fills it, later frames evaluate the BRDF
+                    // only.
                     let mut cache = glint::render::VertexLight::default();
                     let t0 = Instant::now();
-                    std::hint::black_box(prt.render_cached(&mut cache, &light, &camera, w, h, &shading));
+                    std::hint::black_box(
+                        prt.render_cached(&mut cache, &light, &camera, w, h, &shading),
+                    );
                     let fill = t0.elapsed().as_secs_f64();
-                    let secs = time(5, || prt.render_cached(&mut cache, &light, &camera, w, h, &shading));
+                    let secs = time(5, || {
+                        prt.render_cached(&mut cache, &light, &camera, w, h, &shading)
+                    });
                     println!(
                         "| {mesh} | {} | {w}×{h} | {label}, light cached ({:.0} MB; first frame {fill:.3} s) | {} | {} | {secs:.3} | {:.1} |",
                         scene.mesh.positions.len(),
@@ -77,12 +132,30 @@ fn main() {
                 }
             }
         }
-        // The CPU preview after a light rotation: new light sums (from the kept source) and a frame at
-        // the app's preview settings (vertices, 16° partition, 64-leaf horizon clips: engine.rs), over
-        // the view's shading mesh, which the app keeps while the view does not change.
+        // The CPU preview after a light rotation: new light sums (from the kept source) and a frame
+        // at the app's preview settings (vertices, 16° partition, 64-leaf horizon clips:
+        // engine.rs), over the view's shading mesh, which the app keeps while the view does not
+        // change.
         let source = glint::light::LightSource::new(&env);
-        std::hint::black_box(LightSums::from_source(&source, &baker.set, &baker.tree, 0.0));
-        let preview = Prt::new(&scene.mesh, &bake.cuts, &baker.tree, None, PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg: 16.0, horizon_leaves: 64, ..PrtSettings::default() });
+        std::hint::black_box(LightSums::from_source(
+            &source,
+            &baker.set,
+            &baker.tree,
+            0.0,
+        ));
+        let preview = Prt::new(
+            &scene.mesh,
+            &bake.cuts,
+            &baker.tree,
+            None,
+            PrtSettings {
+                max_edge_px: 0.0,
+                per_pixel: false,
+                partition_deg: 16.0,
+                horizon_leaves: 64,
+                ..PrtSettings::default()
+            },
+        );
         for (w, h) in [(160, 120), (640, 480)] {
             let mut camera = scene.cameras[0].clone();
             camera.aspect = w as f32 / h as f32;
@@ -93,14 +166,32 @@ fn main() {
                 let light = LightSums::from_source(&source, &baker.set, &baker.tree, rotation);
                 preview.render_mesh(&sm, &light, &camera, w, h, &shading)
             });
-            let light_secs = time(5, || LightSums::from_source(&source, &baker.set, &baker.tree, 0.3));
-            println!("| {mesh} | {} | {w}×{h} | app preview after a light rotation (light sums {light_secs:.3} s + frame; 16° partition, 64-leaf horizon clips, the view's shading mesh kept) | 0 | | {secs:.3} | {:.1} |", scene.mesh.positions.len(), 1.0 / secs);
+            let light_secs = time(5, || {
+                LightSums::from_source(&source, &baker.set, &baker.tree, 0.3)
+            });
+            println!(
+                "| {mesh} | {} | {w}×{h} | app preview after a light rotation (light sums {light_secs:.3} s + frame; 16° partition, 64-leaf horizon clips, the view's shading mesh kept) | 0 | | {secs:.3} | {:.1} |",
+                scene.mesh.positions.len(),
+                1.0 / secs
+            );
         }
         #[cfg(feature = "gui")]
         match glint::gpu::GpuContext::headless() {
             Ok(ctx) => {
-                let settings = PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() };
-                let mut preview = glint::gpu::GpuPreview::new(&ctx, &scene.mesh, &bake.cuts, &baker.tree, None, settings).unwrap();
+                let settings = PrtSettings {
+                    max_edge_px: 0.0,
+                    per_pixel: false,
+                    ..PrtSettings::default()
+                };
+                let mut preview = glint::gpu::GpuPreview::new(
+                    &ctx,
+                    &scene.mesh,
+                    &bake.cuts,
+                    &baker.tree,
+                    None,
+                    settings,
+                )
+                .unwrap();
                 preview.set_material([0.5; 3], 0.04, Some(&table)).unwrap();
                 let t_light = time(3, || preview.set_light(&light, &baker.tree).unwrap());
                 for (w, h) in [(160, 120), (640, 480)] {
@@ -108,13 +199,21 @@ fn main() {
                     camera.aspect = w as f32 / h as f32;
                     preview.render(&camera, w, h).unwrap();
                     let secs = time(5, || preview.render(&camera, w, h).unwrap());
-                    gpu_rows.push(format!("| {mesh} | {} | {w}×{h} | {} | {secs:.3} | {:.1} | {:.1} |", scene.mesh.positions.len(), ctx.describe(), 1.0 / secs, t_light * 1e3));
+                    gpu_rows.push(format!(
+                        "| {mesh} | {} | {w}×{h} | {} | {secs:.3} | {:.1} | {:.1} |",
+                        scene.mesh.positions.len(),
+                        ctx.describe(),
+                        1.0 / secs,
+                        t_light * 1e3
+                    ));
                 }
             }
             Err(e) => gpu_rows.push(format!("| {mesh} | no adapter: {e} | | | | |")),
         }
         #[cfg(not(feature = "gui"))]
-        gpu_rows.push(format!("| {mesh} | built without the gui feature | | | | |"));
+        gpu_rows.push(format!(
+            "| {mesh} | built without the gui feature | | | | |"
+        ));
     }
     println!();
     println!("| scene | vertices | size | wgpu adapter | frame (s) | fps | light upload (ms) |");

@@ -1,6 +1,6 @@
 //! Render studies: the PRT frame against the Monte Carlo reference and the transfer render, one
-//! ingredient or setting at a time, printed as tables (developer tools behind the accuracy figures in
-//! docs/benchmarks.md; tests/it/render.rs holds the assertions). Run one by name with KEY=VALUE
+//! ingredient or setting at a time, printed as tables (developer tools behind the accuracy figures
+//! in docs/benchmarks.md; tests/it/render.rs holds the assertions). Run one by name with KEY=VALUE
 //! settings, e.g. `cargo run --release --example render_studies -- diagnose MESH=teapot`.
 
 #[path = "../tests/it/common.rs"]
@@ -18,30 +18,46 @@ use render_cases::*;
 /// A study's setting: `KEY=VALUE` on the command line (in place of an environment variable).
 fn arg(key: &str) -> Result<String, std::env::VarError> {
     let prefix = format!("{key}=");
-    std::env::args().skip(2).find_map(|a| a.strip_prefix(&prefix).map(str::to_owned)).ok_or(std::env::VarError::NotPresent)
+    std::env::args()
+        .skip(2)
+        .find_map(|a| a.strip_prefix(&prefix).map(str::to_owned))
+        .ok_or(std::env::VarError::NotPresent)
 }
 
 /// Where studies write images: `OUT`, else glint-studies in the system temp folder.
 fn out_dir() -> std::path::PathBuf {
-    arg("OUT").map(std::path::PathBuf::from).unwrap_or_else(|_| std::env::temp_dir().join("glint-studies"))
+    arg("OUT")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|_| std::env::temp_dir().join("glint-studies"))
 }
 
 fn main() {
-    let studies: &[(&str, fn())] = &[("diagnose", diagnose), ("subdivision_study", subdivision_study), ("profile_frame", profile_frame), ("refine_study", refine_study), ("sharp_lobe_diagnose", sharp_lobe_diagnose), ("sharp_lobe_quadrature", sharp_lobe_quadrature)];
+    let studies: &[(&str, fn())] = &[
+        ("diagnose", diagnose),
+        ("subdivision_study", subdivision_study),
+        ("profile_frame", profile_frame),
+        ("refine_study", refine_study),
+        ("sharp_lobe_diagnose", sharp_lobe_diagnose),
+        ("sharp_lobe_quadrature", sharp_lobe_quadrature),
+    ];
     let name = std::env::args().nth(1).unwrap_or_default();
     match studies.iter().find(|(n, _)| *n == name) {
         Some((_, run)) => run(),
         None => {
             let names: Vec<_> = studies.iter().map(|(n, _)| *n).collect();
-            eprintln!("usage: render_studies STUDY [KEY=VALUE ...]; STUDY is one of {}", names.join(", "));
+            eprintln!(
+                "usage: render_studies STUDY [KEY=VALUE ...]; STUDY is one of {}",
+                names.join(", ")
+            );
             std::process::exit(2);
         }
     }
 }
 
-/// Study: `cargo run --example render_studies -- diagnose MESH=teapot`
-/// prints PRT, transfer and Monte Carlo errors for a grid of PRT settings (ES: shading-triangle edges in
-/// pixels; a negative value shades per pixel) and writes images to `OUT` (default: the system temp folder's glint-studies).
+/// Study: `cargo run --example render_studies -- diagnose MESH=teapot` prints PRT, transfer and
+/// Monte Carlo errors for a grid of PRT settings (ES: shading-triangle edges in pixels; a negative
+/// value shades per pixel) and writes images to `OUT` (default: the system temp folder's
+/// glint-studies).
 fn diagnose() {
     let mesh = arg("MESH").unwrap_or("bunny".into());
     let (w, h) = (160, 120);
@@ -49,7 +65,11 @@ fn diagnose() {
     let m = fitted(&c);
     println!("coefficients R: {:?}", m.coefficients[0]);
     let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let zero = vec![0.0; lobes.len()];
     let zc = [zero.as_slice(), zero.as_slice(), zero.as_slice()];
     let camera = &c.scene.cameras[0];
@@ -58,11 +78,49 @@ fn diagnose() {
     let out = &out_dir();
     std::fs::create_dir_all(out).unwrap();
     for (name, coef) in [("diffuse", zc), ("full", coefficients)] {
-        let material = ExactMaterial { lobes: &lobes, coefficients: coef, rho_d: m.rho_d, f0: m.f0 };
-        let mc = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 1024, 7);
-        let mc2 = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 1024, 8);
+        let material = ExactMaterial {
+            lobes: &lobes,
+            coefficients: coef,
+            rho_d: m.rho_d,
+            f0: m.f0,
+        };
+        let mc = render_reference(
+            &c.scene.mesh,
+            c.tangents.as_deref(),
+            &tracer,
+            c.baker_offset,
+            &c.env,
+            0.0,
+            material,
+            camera,
+            w,
+            h,
+            1024,
+            7,
+        );
+        let mc2 = render_reference(
+            &c.scene.mesh,
+            c.tangents.as_deref(),
+            &tracer,
+            c.baker_offset,
+            &c.env,
+            0.0,
+            material,
+            camera,
+            w,
+            h,
+            1024,
+            8,
+        );
         // Transfer (per pixel) render.
-        let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+        let ctx = glint::transfer::TransferContext::new(
+            &c.scene.mesh,
+            &c.bake.cuts,
+            &c.tree,
+            &lobes,
+            c.tangents.as_deref(),
+            None,
+        );
         let t = ctx.compute(&light, camera, w, h, m.f0);
         let tr = t.render(m.rho_d, coef);
         let mut timg = glint::render::Image::new(w, h);
@@ -70,73 +128,174 @@ fn diagnose() {
             timg.set(p.x, p.y, v.map(|x| x as f32));
         }
         let mut variants = vec![("default".to_string(), PrtSettings::default())];
-        let pds: Vec<f64> = arg("PDS").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![1.0, 2.0, 4.0]);
-        let es: Vec<f64> = arg("ES").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
+        let pds: Vec<f64> = arg("PDS")
+            .map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
+            .unwrap_or(vec![1.0, 2.0, 4.0]);
+        let es: Vec<f64> = arg("ES")
+            .map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
+            .unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
         for &pd in &pds {
             for &e in &es {
-                variants.push((format!("p{pd}e{e}"), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e, per_pixel: e < 0.0, ..PrtSettings::default() }));
+                variants.push((
+                    format!("p{pd}e{e}"),
+                    PrtSettings {
+                        partition_deg: pd,
+                        prefilter: true,
+                        max_edge_px: e,
+                        per_pixel: e < 0.0,
+                        ..PrtSettings::default()
+                    },
+                ));
             }
         }
         for (label, settings) in variants {
-            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
+            let prt = Prt::new(
+                &c.scene.mesh,
+                &c.bake.cuts,
+                &c.tree,
+                c.tangents.as_deref(),
+                settings,
+            );
             let table = PhTable::build(&lobes, coef, default_resolution(lobes.lambda()));
             let t0 = std::time::Instant::now();
-            let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+            let img = prt.render(
+                &light,
+                camera,
+                w,
+                h,
+                &Shading {
+                    rho_d: m.rho_d,
+                    f0: m.f0,
+                    specular: Specular::Table(&table),
+                },
+            );
             let secs = t0.elapsed().as_secs_f64();
-            println!("{name} {label}: PRT vs MC {:.4}, PRT vs transfer {:.4}, frame {secs:.3} s, partition nodes {}", img.relative_rmse(&mc).unwrap(), img.relative_rmse(&timg).unwrap(), prt.partition_nodes());
-            img.write(&out.join(format!("{mesh}_{name}_{label}.exr")), 1.0).unwrap();
+            println!(
+                "{name} {label}: PRT vs MC {:.4}, PRT vs transfer {:.4}, frame {secs:.3} s, partition nodes {}",
+                img.relative_rmse(&mc).unwrap(),
+                img.relative_rmse(&timg).unwrap(),
+                prt.partition_nodes()
+            );
+            img.write(&out.join(format!("{mesh}_{name}_{label}.exr")), 1.0)
+                .unwrap();
         }
-        println!("{name}: transfer vs MC {:.4}, MC noise {:.4}", timg.relative_rmse(&mc).unwrap(), mc2.relative_rmse(&mc).unwrap());
+        println!(
+            "{name}: transfer vs MC {:.4}, MC noise {:.4}",
+            timg.relative_rmse(&mc).unwrap(),
+            mc2.relative_rmse(&mc).unwrap()
+        );
         let mut diff = glint::render::Image::new(w, h);
         let mut signed = 0.0f64;
         for k in 0..diff.pixels.len() {
             if mc.covered[k] && timg.covered[k] {
-                let (a, b) = (timg.pixels[k][1], (mc.pixels[k][1] + mc2.pixels[k][1]) * 0.5);
+                let (a, b) = (
+                    timg.pixels[k][1],
+                    (mc.pixels[k][1] + mc2.pixels[k][1]) * 0.5,
+                );
                 signed += (a - b) as f64;
-                diff.pixels[k] = if a > b { [(a - b) * 10.0, 0.0, 0.0] } else { [0.0, 0.0, (b - a) * 10.0] };
+                diff.pixels[k] = if a > b {
+                    [(a - b) * 10.0, 0.0, 0.0]
+                } else {
+                    [0.0, 0.0, (b - a) * 10.0]
+                };
             }
         }
-        println!("{name}: mean signed (transfer - MC) {:.4e} per pixel, mean MC {:.4e}", signed / mc.covered_count() as f64, mc.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / mc.covered_count() as f64);
-        diff.write(&out.join(format!("{mesh}_{name}_diff.png")), 1.0).unwrap();
-        mc.write(&out.join(format!("{mesh}_{name}_mc.exr")), 1.0).unwrap();
-        mc2.write(&out.join(format!("{mesh}_{name}_mc2.exr")), 1.0).unwrap();
-        timg.write(&out.join(format!("{mesh}_{name}_transfer.exr")), 1.0).unwrap();
-        mc.write(&out.join(format!("{mesh}_{name}_mc.png")), 1.0).unwrap();
-        timg.write(&out.join(format!("{mesh}_{name}_transfer.png")), 1.0).unwrap();
+        println!(
+            "{name}: mean signed (transfer - MC) {:.4e} per pixel, mean MC {:.4e}",
+            signed / mc.covered_count() as f64,
+            mc.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / mc.covered_count() as f64
+        );
+        diff.write(&out.join(format!("{mesh}_{name}_diff.png")), 1.0)
+            .unwrap();
+        mc.write(&out.join(format!("{mesh}_{name}_mc.exr")), 1.0)
+            .unwrap();
+        mc2.write(&out.join(format!("{mesh}_{name}_mc2.exr")), 1.0)
+            .unwrap();
+        timg.write(&out.join(format!("{mesh}_{name}_transfer.exr")), 1.0)
+            .unwrap();
+        mc.write(&out.join(format!("{mesh}_{name}_mc.png")), 1.0)
+            .unwrap();
+        timg.write(&out.join(format!("{mesh}_{name}_transfer.png")), 1.0)
+            .unwrap();
     }
 }
 
 /// Study: transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
 /// mesh (`cargo run --example render_studies -- subdivision_study`).
 fn subdivision_study() {
-    let spec = arg("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
+    let spec =
+        arg("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
     for item in spec.split(',') {
         let f: Vec<&str> = item.split(':').collect();
-        let (mesh, levels, cell_deg, epsilon): (&str, usize, f64, f64) = (f[0], f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
+        let (mesh, levels, cell_deg, epsilon): (&str, usize, f64, f64) = (
+            f[0],
+            f[1].parse().unwrap(),
+            f[2].parse().unwrap(),
+            f[3].parse().unwrap(),
+        );
         {
-            let mut scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+            let mut scene =
+                glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
             for _ in 0..levels {
                 scene.mesh = glint::scene::subdivide_midpoint(&scene.mesh);
             }
             let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
             let t0 = std::time::Instant::now();
-            let mut settings = BakeSettings { cell_deg: Some(cell_deg), ..BakeSettings::default() };
+            let mut settings = BakeSettings {
+                cell_deg: Some(cell_deg),
+                ..BakeSettings::default()
+            };
             settings.cut.epsilon = epsilon;
             let baker = Baker::new(&scene, &env, settings).unwrap();
             let bake = baker.bake_all(None, &|_| {});
             let bake_secs = t0.elapsed().as_secs_f64();
-            let (baker_offset, tangents, set, tree) = (baker.ray_offset(), baker.tangents.clone(), baker.set.clone(), baker.tree.clone());
+            let (baker_offset, tangents, set, tree) = (
+                baker.ray_offset(),
+                baker.tangents.clone(),
+                baker.set.clone(),
+                baker.tree.clone(),
+            );
             drop(baker);
-            let c = Case { scene, env, baker_offset, tangents, set, tree, bake };
+            let c = Case {
+                scene,
+                env,
+                baker_offset,
+                tangents,
+                set,
+                tree,
+                bake,
+            };
             let m = fitted(&c);
             let lobes = m.lobes().unwrap();
-            let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+            let coefficients = [
+                m.coefficients[0].as_slice(),
+                m.coefficients[1].as_slice(),
+                m.coefficients[2].as_slice(),
+            ];
             let camera = &c.scene.cameras[0];
             let (w, h) = (160, 120);
             let (prt, prt_v, transfer) = prt_and_transfer(&c, &m, w, h);
-            let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+            let material = ExactMaterial {
+                lobes: &lobes,
+                coefficients,
+                rho_d: m.rho_d,
+                f0: m.f0,
+            };
             let tracer = glint::bake::Tracer::new(&c.scene.mesh);
-            let mc = render_reference(&c.scene.mesh, c.tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+            let mc = render_reference(
+                &c.scene.mesh,
+                c.tangents.as_deref(),
+                &tracer,
+                c.baker_offset,
+                &c.env,
+                0.0,
+                material,
+                camera,
+                w,
+                h,
+                4096,
+                7,
+            );
             println!(
                 "{mesh} levels {levels} cell {cell_deg}° ε {epsilon}: {} vertices, mean cut {:.0}, bake {bake_secs:.2} s; vs MC: transfer {:.4}, PRT {:.4}, PRT vertex-only {:.4}",
                 c.scene.mesh.positions.len(),
@@ -155,29 +314,68 @@ fn profile_frame() {
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
     let env = var("ENV", "studio_512");
-    let (pd, e, reps): (f64, f64, usize) = (var("PD", "4").parse().unwrap(), var("E", "1").parse().unwrap(), var("REPS", "5").parse().unwrap());
-    let (w, h): (u32, u32) = (var("W", "160").parse().unwrap(), var("H", "120").parse().unwrap());
+    let (pd, e, reps): (f64, f64, usize) = (
+        var("PD", "4").parse().unwrap(),
+        var("E", "1").parse().unwrap(),
+        var("REPS", "5").parse().unwrap(),
+    );
+    let (w, h): (u32, u32) = (
+        var("W", "160").parse().unwrap(),
+        var("H", "120").parse().unwrap(),
+    );
     let c = case(&mesh, &env);
-    let lobes = glint::sphere::LobeSet::new(glint::sphere::LobeLayout::Isotropic { count: 24 }, glint::sphere::srbf::lambda_from_sigma(glint::sphere::srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let lobes = glint::sphere::LobeSet::new(
+        glint::sphere::LobeLayout::Isotropic { count: 24 },
+        glint::sphere::srbf::lambda_from_sigma(glint::sphere::srbf::PAPER_SIGMA).unwrap(),
+    )
+    .unwrap();
     let mut co = vec![0.0; lobes.len()];
     (co[0], co[3], co[9]) = (0.8, 0.5, 0.3);
     let coefficients = [co.as_slice(), co.as_slice(), co.as_slice()];
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { partition_deg: pd, prefilter: true, max_edge_px: e, per_pixel: e < 0.0, ..PrtSettings::default() });
+    let prt = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        PrtSettings {
+            partition_deg: pd,
+            prefilter: true,
+            max_edge_px: e,
+            per_pixel: e < 0.0,
+            ..PrtSettings::default()
+        },
+    );
     let mut camera = c.scene.cameras[0].clone();
     camera.aspect = w as f32 / h as f32;
-    let shading = Shading { rho_d: [0.5; 3], f0: 0.04, specular: Specular::Table(&table) };
+    let shading = Shading {
+        rho_d: [0.5; 3],
+        f0: 0.04,
+        specular: Specular::Table(&table),
+    };
     if arg("MODE").as_deref() == Ok("transfer") {
-        let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+        let ctx = glint::transfer::TransferContext::new(
+            &c.scene.mesh,
+            &c.bake.cuts,
+            &c.tree,
+            &lobes,
+            c.tangents.as_deref(),
+            None,
+        );
         let mut best = f64::MAX;
         let mut n = 0;
         for _ in 0..reps {
             let t0 = std::time::Instant::now();
-            n = std::hint::black_box(ctx.compute(&light, &camera, w, h, 0.04)).pixels.len();
+            n = std::hint::black_box(ctx.compute(&light, &camera, w, h, 0.04))
+                .pixels
+                .len();
             best = best.min(t0.elapsed().as_secs_f64());
         }
-        println!("{mesh} {w}x{h} transfer: {n} pixels, shading partitions {:?}, best {best:.3} s", ctx.shading_partitions());
+        println!(
+            "{mesh} {w}x{h} transfer: {n} pixels, shading partitions {:?}, best {best:.3} s",
+            ctx.shading_partitions()
+        );
         return;
     }
     let t0 = std::time::Instant::now();
@@ -189,23 +387,39 @@ fn profile_frame() {
         std::hint::black_box(prt.render(&light, &camera, w, h, &shading));
         best = best.min(t0.elapsed().as_secs_f64());
     }
-    println!("{mesh} {w}x{h} partition {pd}° edge {e}: {} points, subdivision {}, shading mesh {t_mesh:.3} s, frame best {best:.3} s", sm.points.len(), sm.subdivision);
+    println!(
+        "{mesh} {w}x{h} partition {pd}° edge {e}: {} points, subdivision {}, shading mesh {t_mesh:.3} s, frame best {best:.3} s",
+        sm.points.len(),
+        sm.subdivision
+    );
 }
 
 /// Study: PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
-/// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test render
-/// refine_study -- --ignored --nocapture`.
+/// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test
+/// render refine_study -- --ignored --nocapture`.
 fn refine_study() {
     let spec = arg("GLINT_REFINE").unwrap_or_else(|_| "teapot:0.05:128:3".into());
-    // One material per mesh, fitted on the mesh as imported, so that the rows differ only in the bake.
+    // One material per mesh, fitted on the mesh as imported, so that the rows differ only in the
+    // bake.
     let mut materials = std::collections::HashMap::new();
     for item in spec.split(',') {
         let f: Vec<&str> = item.split(':').collect();
-        let (mesh, threshold, inv_edge, rounds): (&str, f64, f64, u32) = (f[0], f[1].parse().unwrap(), f[2].parse().unwrap(), f[3].parse().unwrap());
-        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let (mesh, threshold, inv_edge, rounds): (&str, f64, f64, u32) = (
+            f[0],
+            f[1].parse().unwrap(),
+            f[2].parse().unwrap(),
+            f[3].parse().unwrap(),
+        );
+        let scene =
+            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
         let mut settings = BakeSettings::default();
-        settings.refine = glint::bake::RefineSettings { rounds, threshold, min_edge: 1.0 / inv_edge, ..Default::default() };
+        settings.refine = glint::bake::RefineSettings {
+            rounds,
+            threshold,
+            min_edge: 1.0 / inv_edge,
+            ..Default::default()
+        };
         settings.cell_deg = f.get(4).and_then(|x| x.parse().ok());
         let t0 = std::time::Instant::now();
         let baker = Baker::new(&scene, &env, settings).unwrap();
@@ -216,17 +430,50 @@ fn refine_study() {
         drop(baker);
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&refined.mesh);
         println!("{}", bake.decisions.refine_reason);
-        let c = Case { scene: refined, env, baker_offset, tangents, set, tree, bake };
-        let m = materials.entry(mesh.to_string()).or_insert_with(|| fitted(&case(mesh, "studio_512"))).clone();
+        let c = Case {
+            scene: refined,
+            env,
+            baker_offset,
+            tangents,
+            set,
+            tree,
+            bake,
+        };
+        let m = materials
+            .entry(mesh.to_string())
+            .or_insert_with(|| fitted(&case(mesh, "studio_512")))
+            .clone();
         let lobes = m.lobes().unwrap();
-        let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+        let coefficients = [
+            m.coefficients[0].as_slice(),
+            m.coefficients[1].as_slice(),
+            m.coefficients[2].as_slice(),
+        ];
         let camera = &c.scene.cameras[0];
         let (w, h) = (160, 120);
         let (prt, _, transfer) = prt_and_transfer(&c, &m, w, h);
-        let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+        let material = ExactMaterial {
+            lobes: &lobes,
+            coefficients,
+            rho_d: m.rho_d,
+            f0: m.f0,
+        };
         let tracer = glint::bake::Tracer::new(&scene.mesh);
         let (_, base_tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
-        let mc = render_reference(&scene.mesh, base_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+        let mc = render_reference(
+            &scene.mesh,
+            base_tangents.as_deref(),
+            &tracer,
+            c.baker_offset,
+            &c.env,
+            0.0,
+            material,
+            camera,
+            w,
+            h,
+            4096,
+            7,
+        );
         println!(
             "{item}: {} vertices, mean cut {:.0}, rays {}, bake {bake_secs:.2} s; vs MC: transfer {:.4}, PRT {:.4}",
             c.scene.mesh.positions.len(),
@@ -247,60 +494,230 @@ fn sharp_lobe_diagnose() {
     let mesh = var("MESH", "bunny");
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let t0 = std::time::Instant::now();
-    let c = case_at(&samples.join(format!("{mesh}.glb")), &samples.join("studio_1k.exr"), true);
-    println!("bake {:.1} s, {} vertices", t0.elapsed().as_secs_f64(), c.scene.mesh.positions.len());
-    let imported = glint::scene::import(&samples.join(format!("{mesh}.glb"))).unwrap().mesh;
+    let c = case_at(
+        &samples.join(format!("{mesh}.glb")),
+        &samples.join("studio_1k.exr"),
+        true,
+    );
+    println!(
+        "bake {:.1} s, {} vertices",
+        t0.elapsed().as_secs_f64(),
+        c.scene.mesh.positions.len()
+    );
+    let imported = glint::scene::import(&samples.join(format!("{mesh}.glb")))
+        .unwrap()
+        .mesh;
     let m = one_sharp_lobe();
     let (w, h) = (160, 120);
-    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5").split(',').map(|x| x.parse().unwrap()).collect();
-    let camera = if orbit.len() == 3 { glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h) } else { c.scene.cameras[0].clone() };
+    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5")
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let camera = if orbit.len() == 3 {
+        glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h)
+    } else {
+        c.scene.cameras[0].clone()
+    };
     let rot: f64 = var("ROT", "90").parse().unwrap();
     let spp: u32 = var("SPP", "2048").parse().unwrap();
-    let base = prt_and_mc(&c, &imported, &m, &camera, rot, w, h, spp, PrtSettings::default());
+    let base = prt_and_mc(
+        &c,
+        &imported,
+        &m,
+        &camera,
+        rot,
+        w,
+        h,
+        spp,
+        PrtSettings::default(),
+    );
     let mc = &base.mc;
     let sil = glint::accuracy::silhouette_mask(mc);
-    println!("MC {:.1} s ({spp} spp), PRT {:.3} s; {} object pixels, {} silhouette", base.mc_secs, base.prt_secs, mc.covered_count(), sil.iter().filter(|&&s| s).count());
+    println!(
+        "MC {:.1} s ({spp} spp), PRT {:.3} s; {} object pixels, {} silhouette",
+        base.mc_secs,
+        base.prt_secs,
+        mc.covered_count(),
+        sil.iter().filter(|&&s| s).count()
+    );
     let report = |label: &str, img: &glint::render::Image| {
         let (all, s) = (rmse_where(img, mc, None), rmse_where(img, mc, Some(&sil)));
         let interior: Vec<bool> = sil.iter().map(|x| !x).collect();
-        println!("{label:>36}: object {:.2} %, silhouette {:.2} %, interior {:.2} %", 100.0 * all, 100.0 * s, 100.0 * rmse_where(img, mc, Some(&interior)));
+        println!(
+            "{label:>36}: object {:.2} %, silhouette {:.2} %, interior {:.2} %",
+            100.0 * all,
+            100.0 * s,
+            100.0 * rmse_where(img, mc, Some(&interior))
+        );
     };
     report("default", &base.prt);
     if arg("NOISE").is_ok() {
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&imported);
         let lobes = m.lobes().unwrap();
-        let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-        let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
-        let mc2 = render_reference(&imported, tangents.as_deref(), &glint::bake::Tracer::new(&imported), c.baker_offset, &c.env, rot.to_radians(), material, &camera, w, h, spp, 8);
-        println!("MC noise (one image): object {:.2} %, silhouette {:.2} %", 100.0 * rmse_where(&mc2, mc, None) / 2f64.sqrt(), 100.0 * rmse_where(&mc2, mc, Some(&sil)) / 2f64.sqrt());
+        let coefficients = [
+            m.coefficients[0].as_slice(),
+            m.coefficients[1].as_slice(),
+            m.coefficients[2].as_slice(),
+        ];
+        let material = ExactMaterial {
+            lobes: &lobes,
+            coefficients,
+            rho_d: m.rho_d,
+            f0: m.f0,
+        };
+        let mc2 = render_reference(
+            &imported,
+            tangents.as_deref(),
+            &glint::bake::Tracer::new(&imported),
+            c.baker_offset,
+            &c.env,
+            rot.to_radians(),
+            material,
+            &camera,
+            w,
+            h,
+            spp,
+            8,
+        );
+        println!(
+            "MC noise (one image): object {:.2} %, silhouette {:.2} %",
+            100.0 * rmse_where(&mc2, mc, None) / 2f64.sqrt(),
+            100.0 * rmse_where(&mc2, mc, Some(&sil)) / 2f64.sqrt()
+        );
     }
     let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let d = PrtSettings::default();
     let variants = [
         ("exact lobes", d, true),
-        ("no grazing tiers", PrtSettings { grazing_tiers: false, ..d }, false),
-        ("no prefilter", PrtSettings { prefilter: false, ..d }, false),
-        ("per run", PrtSettings { merge_runs: false, ..d }, false),
-        ("texel lookups", PrtSettings { texel_lookups: true, ..d }, false),
-        ("partition 4°", PrtSettings { partition_deg: 4.0, ..d }, false),
-        ("partition 2°", PrtSettings { partition_deg: 2.0, ..d }, false),
-        ("partition 1°", PrtSettings { partition_deg: 1.0, ..d }, false),
-        ("partition 1° no prefilter", PrtSettings { partition_deg: 1.0, prefilter: false, ..d }, false),
-        ("horizon leaves 1", PrtSettings { horizon_leaves: 1, ..d }, false),
-        ("vertex shading", PrtSettings { per_pixel: false, max_edge_px: 0.0, ..d }, false),
+        (
+            "no grazing tiers",
+            PrtSettings {
+                grazing_tiers: false,
+                ..d
+            },
+            false,
+        ),
+        (
+            "no prefilter",
+            PrtSettings {
+                prefilter: false,
+                ..d
+            },
+            false,
+        ),
+        (
+            "per run",
+            PrtSettings {
+                merge_runs: false,
+                ..d
+            },
+            false,
+        ),
+        (
+            "texel lookups",
+            PrtSettings {
+                texel_lookups: true,
+                ..d
+            },
+            false,
+        ),
+        (
+            "partition 4°",
+            PrtSettings {
+                partition_deg: 4.0,
+                ..d
+            },
+            false,
+        ),
+        (
+            "partition 2°",
+            PrtSettings {
+                partition_deg: 2.0,
+                ..d
+            },
+            false,
+        ),
+        (
+            "partition 1°",
+            PrtSettings {
+                partition_deg: 1.0,
+                ..d
+            },
+            false,
+        ),
+        (
+            "partition 1° no prefilter",
+            PrtSettings {
+                partition_deg: 1.0,
+                prefilter: false,
+                ..d
+            },
+            false,
+        ),
+        (
+            "horizon leaves 1",
+            PrtSettings {
+                horizon_leaves: 1,
+                ..d
+            },
+            false,
+        ),
+        (
+            "vertex shading",
+            PrtSettings {
+                per_pixel: false,
+                max_edge_px: 0.0,
+                ..d
+            },
+            false,
+        ),
     ];
     let mut images = Vec::new();
     for (label, settings, exact) in variants {
-        let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
-        let specular = if exact { Specular::Exact { lobes: &lobes, coefficients } } else { Specular::Table(&table) };
-        let img = prt.render(&light, &camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular });
+        let prt = Prt::new(
+            &c.scene.mesh,
+            &c.bake.cuts,
+            &c.tree,
+            c.tangents.as_deref(),
+            settings,
+        );
+        let specular = if exact {
+            Specular::Exact {
+                lobes: &lobes,
+                coefficients,
+            }
+        } else {
+            Specular::Table(&table)
+        };
+        let img = prt.render(
+            &light,
+            &camera,
+            w,
+            h,
+            &Shading {
+                rho_d: m.rho_d,
+                f0: m.f0,
+                specular,
+            },
+        );
         report(label, &img);
         images.push((label, img));
     }
-    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+    let ctx = glint::transfer::TransferContext::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        &lobes,
+        c.tangents.as_deref(),
+        None,
+    );
     let t = ctx.compute(&light, &camera, w, h, m.f0);
     let mut transfer = glint::render::Image::new(w, h);
     for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
@@ -315,39 +732,63 @@ fn sharp_lobe_diagnose() {
         .map(|p| {
             let k = (p.y * w + p.x) as usize;
             let wo_z = (eye - p.position).normalize().dot(p.normal) as f64;
-            (((base.prt.pixels[k][1] - mc.pixels[k][1]) as f64).powi(2), k, wo_z)
+            (
+                ((base.prt.pixels[k][1] - mc.pixels[k][1]) as f64).powi(2),
+                k,
+                wo_z,
+            )
         })
         .collect();
     rows.sort_by(|a, b| b.0.total_cmp(&a.0));
     let total: f64 = rows.iter().map(|r| r.0).sum();
     let mut by_cos = [0.0f64; 5];
     for r in &rows {
-        by_cos[[0.05, 0.15, 0.3, 0.6, 2.0].iter().position(|&b| r.2 < b).unwrap()] += r.0 / total;
+        by_cos[[0.05, 0.15, 0.3, 0.6, 2.0]
+            .iter()
+            .position(|&b| r.2 < b)
+            .unwrap()] += r.0 / total;
     }
-    println!("share of the squared error (G) by wo·n: <0.05 {:.2}, <0.15 {:.2}, <0.3 {:.2}, <0.6 {:.2}, ≥0.6 {:.2}", by_cos[0], by_cos[1], by_cos[2], by_cos[3], by_cos[4]);
+    println!(
+        "share of the squared error (G) by wo·n: <0.05 {:.2}, <0.15 {:.2}, <0.3 {:.2}, <0.6 {:.2}, ≥0.6 {:.2}",
+        by_cos[0], by_cos[1], by_cos[2], by_cos[3], by_cos[4]
+    );
     for r in rows.iter().take(12) {
         let k = r.1;
         let g = |img: &glint::render::Image| img.pixels[k][1];
-        let vals: Vec<String> = images.iter().map(|(l, img)| format!("{l} {:.3}", g(img))).collect();
-        println!("pixel ({}, {}) wo·n {:.3} sil {}: MC {:.3} PRT {:.3} transfer {:.3} | {}", k % w as usize, k / w as usize, r.2, sil[k], g(mc), g(&base.prt), g(&transfer), vals.join(", "));
+        let vals: Vec<String> = images
+            .iter()
+            .map(|(l, img)| format!("{l} {:.3}", g(img)))
+            .collect();
+        println!(
+            "pixel ({}, {}) wo·n {:.3} sil {}: MC {:.3} PRT {:.3} transfer {:.3} | {}",
+            k % w as usize,
+            k / w as usize,
+            r.2,
+            sil[k],
+            g(mc),
+            g(&base.prt),
+            g(&transfer),
+            vals.join(", ")
+        );
     }
 }
 
-/// Study: issue 28's remaining error split by ingredient at chosen pixels, by
-/// quadrature over the direction set's texels (k×k sub-directions each, env `K`, default 6; 4 suffices),
-/// green channel, noise-free: Q_mc = Σ L(d) V_ray(d) f_r(d) cos dω with L read as the reference reads it
-/// (nearest texel), on the imported mesh (what Monte Carlo estimates); on the PRT's (refined) mesh:
-/// Q_geo (the same; its rays leave the refined mesh's smooth surface but hit the imported mesh, so a few
+/// Study: issue 28's remaining error split by ingredient at chosen pixels, by quadrature over the
+/// direction set's texels (k×k sub-directions each, env `K`, default 6; 4 suffices), green channel,
+/// noise-free: Q_mc = Σ L(d) V_ray(d) f_r(d) cos dω with L read as the reference reads it (nearest
+/// texel), on the imported mesh (what Monte Carlo estimates); on the PRT's (refined) mesh: Q_geo
+/// (the same; its rays leave the refined mesh's smooth surface but hit the imported mesh, so a few
 /// pixels self-shadow: an artefact of this tool), Q_leafL (L constant per leaf, as in `LightSums`),
-/// Q_cutV (and V from the corners' cuts per leaf: the PRT's own inputs, the BRDF integrated exactly),
-/// and Q with the map's own L and the cuts' V. Pixels: the `N` (default 40) worst by the PRT's error
-/// against MC, `N` at random, and every `STRIDE`-th (default 3) seen at wo·n < `GZ` (default 0.3); the
-/// last class is also patched into the PRT frame (RGB, map L, cut V) to show what resolving the light
-/// and the BRDF inside leaves at those points would give against MC. `RES` bakes at that direction-set
-/// resolution; `ALL` prints every pixel. Bunny, rotation 90°, K = 4, wo·n < 0.3 (251
-/// pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5 %, Q with map L and cut V
-/// 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette 4.02 %; unpatched 5.92 / 8.23 %).
-/// `cargo run --example render_studies -- sharp_lobe_quadrature` (MESH, ORBIT, ROT, SPP).
+/// Q_cutV (and V from the corners' cuts per leaf: the PRT's own inputs, the BRDF integrated
+/// exactly), and Q with the map's own L and the cuts' V. Pixels: the `N` (default 40) worst by the
+/// PRT's error against MC, `N` at random, and every `STRIDE`-th (default 3) seen at wo·n < `GZ`
+/// (default 0.3); the last class is also patched into the PRT frame (RGB, map L, cut V) to show
+/// what resolving the light and the BRDF inside leaves at those points would give against MC. `RES`
+/// bakes at that direction-set resolution; `ALL` prints every pixel. Bunny, rotation 90°, K = 4,
+/// wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5 %, Q
+/// with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette 4.02 %;
+/// unpatched 5.92 / 8.23 %). `cargo run --example render_studies -- sharp_lobe_quadrature` (MESH,
+/// ORBIT, ROT, SPP).
 fn sharp_lobe_quadrature() {
     use glam::{DVec3, Vec3A};
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
@@ -355,31 +796,70 @@ fn sharp_lobe_quadrature() {
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let res: Option<usize> = arg("RES").ok().map(|r| r.parse().unwrap());
     let c = {
-        let (mesh, env) = (samples.join(format!("{mesh}.glb")), samples.join("studio_1k.exr"));
+        let (mesh, env) = (
+            samples.join(format!("{mesh}.glb")),
+            samples.join("studio_1k.exr"),
+        );
         let scene = glint::scene::import(&mesh).unwrap();
         let env = glint::env::load(&env).unwrap();
-        let baker = Baker::new(&scene, &env, BakeSettings { resolution: res, ..BakeSettings::default() }).unwrap();
+        let baker = Baker::new(
+            &scene,
+            &env,
+            BakeSettings {
+                resolution: res,
+                ..BakeSettings::default()
+            },
+        )
+        .unwrap();
         let bake = baker.bake_refined(None, &|_| {});
         let offset = baker.ray_offset();
         let (set, tree) = (baker.set.clone(), baker.tree.clone());
         drop(baker);
         let scene = bake.scene(&scene).unwrap();
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
-        Case { scene, env, baker_offset: offset, bake, tangents, set, tree }
+        Case {
+            scene,
+            env,
+            baker_offset: offset,
+            bake,
+            tangents,
+            set,
+            tree,
+        }
     };
     println!("direction set {} per side", c.set.resolution());
-    let imported = glint::scene::import(&samples.join(format!("{mesh}.glb"))).unwrap().mesh;
+    let imported = glint::scene::import(&samples.join(format!("{mesh}.glb")))
+        .unwrap()
+        .mesh;
     let m = one_sharp_lobe();
     let (w, h) = (160u32, 120u32);
-    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5").split(',').map(|x| x.parse().unwrap()).collect();
+    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5")
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
     let camera = glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h);
     let rot: f64 = var("ROT", "90").parse().unwrap();
     let spp: u32 = var("SPP", "1024").parse().unwrap();
     let kk: usize = var("K", "6").parse().unwrap();
     let npx: usize = var("N", "40").parse().unwrap();
-    let pair = prt_and_mc(&c, &imported, &m, &camera, rot, w, h, spp, PrtSettings::default());
+    let pair = prt_and_mc(
+        &c,
+        &imported,
+        &m,
+        &camera,
+        rot,
+        w,
+        h,
+        spp,
+        PrtSettings::default(),
+    );
     let sil = glint::accuracy::silhouette_mask(&pair.mc);
-    println!("PRT {:.3} s; PRT vs MC ({spp} spp): object {:.2} %, silhouette {:.2} %", pair.prt_secs, 100.0 * rmse_where(&pair.prt, &pair.mc, None), 100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil)));
+    println!(
+        "PRT {:.3} s; PRT vs MC ({spp} spp): object {:.2} %, silhouette {:.2} %",
+        pair.prt_secs,
+        100.0 * rmse_where(&pair.prt, &pair.mc, None),
+        100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil))
+    );
     let lobes = m.lobes().unwrap();
     let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
     let tracer = glint::bake::Tracer::new(&imported);
@@ -390,9 +870,21 @@ fn sharp_lobe_quadrature() {
     }
     let frags_ref = glint::raster::rasterize(&c.scene.mesh, &camera, w, h);
     let frags_imp = glint::raster::rasterize(&imported, &camera, w, h);
-    let at = |fr: &[glint::raster::Fragment], k: usize| fr.iter().find(|f| (f.y * w + f.x) as usize == k).copied();
+    let at = |fr: &[glint::raster::Fragment], k: usize| {
+        fr.iter().find(|f| (f.y * w + f.x) as usize == k).copied()
+    };
     // Candidate pixels.
-    let mut rows: Vec<(f64, usize)> = frags_ref.iter().map(|f| (f.y * w + f.x) as usize).filter(|&k| pair.mc.covered[k]).map(|k| (((pair.prt.pixels[k][1] - pair.mc.pixels[k][1]) as f64).powi(2), k)).collect();
+    let mut rows: Vec<(f64, usize)> = frags_ref
+        .iter()
+        .map(|f| (f.y * w + f.x) as usize)
+        .filter(|&k| pair.mc.covered[k])
+        .map(|k| {
+            (
+                ((pair.prt.pixels[k][1] - pair.mc.pixels[k][1]) as f64).powi(2),
+                k,
+            )
+        })
+        .collect();
     rows.sort_by(|a, b| b.0.total_cmp(&a.0));
     let mut chosen: Vec<usize> = rows.iter().take(npx).map(|r| r.1).collect();
     let mut rng = glint::math::rng::Rng::new(11);
@@ -406,8 +898,13 @@ fn sharp_lobe_quadrature() {
         .iter()
         .filter(|f| {
             let tri = c.scene.mesh.triangles[f.triangle as usize];
-            let p: DVec3 = (0..3).map(|i| c.scene.mesh.positions[tri[i] as usize].as_dvec3() * f.bary[i] as f64).sum();
-            let n = (0..3).map(|i| c.scene.mesh.normals[tri[i] as usize].as_dvec3() * f.bary[i] as f64).sum::<DVec3>().normalize();
+            let p: DVec3 = (0..3)
+                .map(|i| c.scene.mesh.positions[tri[i] as usize].as_dvec3() * f.bary[i] as f64)
+                .sum();
+            let n = (0..3)
+                .map(|i| c.scene.mesh.normals[tri[i] as usize].as_dvec3() * f.bary[i] as f64)
+                .sum::<DVec3>()
+                .normalize();
             let won = (eye - p).normalize().dot(n);
             won > 0.0 && won < gz
         })
@@ -415,15 +912,45 @@ fn sharp_lobe_quadrature() {
         .step_by(stride)
         .collect();
     chosen.extend(grazing);
-    let variants: Vec<glint::render::Image> = [PrtSettings { partition_deg: 1.0, ..PrtSettings::default() }, PrtSettings { partition_deg: 1.0, prefilter: false, ..PrtSettings::default() }]
-        .into_iter()
-        .map(|s| {
-            let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), s);
-            let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
-            let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-            prt.render(&light, &camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) })
-        })
-        .collect();
+    let variants: Vec<glint::render::Image> = [
+        PrtSettings {
+            partition_deg: 1.0,
+            ..PrtSettings::default()
+        },
+        PrtSettings {
+            partition_deg: 1.0,
+            prefilter: false,
+            ..PrtSettings::default()
+        },
+    ]
+    .into_iter()
+    .map(|s| {
+        let prt = Prt::new(
+            &c.scene.mesh,
+            &c.bake.cuts,
+            &c.tree,
+            c.tangents.as_deref(),
+            s,
+        );
+        let coefficients = [
+            m.coefficients[0].as_slice(),
+            m.coefficients[1].as_slice(),
+            m.coefficients[2].as_slice(),
+        ];
+        let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+        prt.render(
+            &light,
+            &camera,
+            w,
+            h,
+            &Shading {
+                rho_d: m.rho_d,
+                f0: m.f0,
+                specular: Specular::Table(&table),
+            },
+        )
+    })
+    .collect();
     let f0 = m.f0;
     let coeff = m.coefficients[1][0];
     let fr = |wi: DVec3, wo: DVec3| -> f64 {
@@ -441,8 +968,13 @@ fn sharp_lobe_quadrature() {
     let geom = |mesh: &glint::scene::Mesh, f: glint::raster::Fragment| {
         let tri = mesh.triangles[f.triangle as usize];
         let b = f.bary.map(|x| x as f64);
-        let p: DVec3 = (0..3).map(|i| mesh.positions[tri[i] as usize].as_dvec3() * b[i]).sum();
-        let n = (0..3).map(|i| mesh.normals[tri[i] as usize].as_dvec3() * b[i]).sum::<DVec3>().normalize();
+        let p: DVec3 = (0..3)
+            .map(|i| mesh.positions[tri[i] as usize].as_dvec3() * b[i])
+            .sum();
+        let n = (0..3)
+            .map(|i| mesh.normals[tri[i] as usize].as_dvec3() * b[i])
+            .sum::<DVec3>()
+            .normalize();
         let corners = [(tri[0], b[0]), (tri[1], b[1]), (tri[2], b[2])];
         let o = glint::scene::smooth_surface_point(mesh, &corners, p) + n * c.baker_offset;
         (p, n, glint::sphere::Frame::from_normal(n), corners, o)
@@ -451,15 +983,20 @@ fn sharp_lobe_quadrature() {
     let mut acc = [[[0.0f64; 2]; 7]; 3];
     let mut agg = [[0.0f64; 4]; 3]; // per class: Σ (PRT − Q_cutV)², Σ Q_cutV², Σ (PRT 1° unfiltered − Q_cutV)², Σ (Q_cutV − Q_mc)² over Q_mc² ...  // per class W, R, G: (Σ (x − Q_mc)², Σ Q_mc²) for MC, PRT, Q_geo, Q_leafL, Q_cutV, PRT 1°, PRT 1° unfiltered
     let t0 = std::time::Instant::now();
-    // The PRT frame with the grazing pixels replaced by Q with the map's own L and the cuts' V (RGB):
-    // what supersampling the specular term inside leaves at those points could reach.
+    // The PRT frame with the grazing pixels replaced by Q with the map's own L and the cuts' V
+    // (RGB): what supersampling the specular term inside leaves at those points could reach.
     let mut patched = pair.prt.clone();
     println!("pixel        wo.n   MC     Q_mc   Q_geo  Q_leafL Q_cutV PRT   (G)");
     for (i, &k) in chosen.iter().enumerate() {
-        let (Some(fa), Some(fb)) = (at(&frags_imp, k), at(&frags_ref, k)) else { continue };
+        let (Some(fa), Some(fb)) = (at(&frags_imp, k), at(&frags_ref, k)) else {
+            continue;
+        };
         let mut q = [0.0f64; 5];
         let mut q_rgb = [0.0f64; 3];
-        for (gi, (mesh, f)) in [(&imported, fa), (&c.scene.mesh, fb)].into_iter().enumerate() {
+        for (gi, (mesh, f)) in [(&imported, fa), (&c.scene.mesh, fb)]
+            .into_iter()
+            .enumerate()
+        {
             let (p, n, frame, corners, o) = geom(mesh, f);
             let wo = frame.to_local((eye - p).normalize());
             let o = Vec3A::new(o.x as f32, o.y as f32, o.z as f32);
@@ -487,7 +1024,12 @@ fn sharp_lobe_quadrature() {
                         continue;
                     }
                     let base = f * wi.z * wt * omega;
-                    let vray = if tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32)) { 0.0 } else { 1.0 };
+                    let vray = if tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32))
+                    {
+                        0.0
+                    } else {
+                        1.0
+                    };
                     let ln = c.env.lookup_nearest(d, rot.to_radians())[1];
                     if gi == 0 {
                         q[0] += base * ln * vray;
@@ -509,13 +1051,44 @@ fn sharp_lobe_quadrature() {
         let p = geom(&c.scene.mesh, fb).0;
         let won = frame.to_local((eye - p).normalize()).z;
         let (mc, prt) = (pair.mc.pixels[k][1] as f64, pair.prt.pixels[k][1] as f64);
-        let (p1, p1n) = (variants[0].pixels[k][1] as f64, variants[1].pixels[k][1] as f64);
-        let class = if i < npx { 0 } else if i < 2 * npx { 1 } else { 2 };
+        let (p1, p1n) = (
+            variants[0].pixels[k][1] as f64,
+            variants[1].pixels[k][1] as f64,
+        );
+        let class = if i < npx {
+            0
+        } else if i < 2 * npx {
+            1
+        } else {
+            2
+        };
         if class == 2 {
-            patched.set((k % w as usize) as u32, (k / w as usize) as u32, q_rgb.map(|x| x as f32));
+            patched.set(
+                (k % w as usize) as u32,
+                (k / w as usize) as u32,
+                q_rgb.map(|x| x as f32),
+            );
         }
-        if class < 2 || arg("ALL").is_ok() || (q[1] - q[0]).abs() > 0.03 * q[0] || (prt - q[3]).abs() > 0.1 * q[3] {
-            println!("({:3},{:3}) {} {:.3} {:.4} {:.4} {:.4} {:.4} {:.4} {:.4} | 1° {:.4} 1°np {:.4}", k % w as usize, k / w as usize, ["W", "R", "G"][class], won, mc, q[0], q[1], q[2], q[3], prt, p1, p1n);
+        if class < 2
+            || arg("ALL").is_ok()
+            || (q[1] - q[0]).abs() > 0.03 * q[0]
+            || (prt - q[3]).abs() > 0.1 * q[3]
+        {
+            println!(
+                "({:3},{:3}) {} {:.3} {:.4} {:.4} {:.4} {:.4} {:.4} {:.4} | 1° {:.4} 1°np {:.4}",
+                k % w as usize,
+                k / w as usize,
+                ["W", "R", "G"][class],
+                won,
+                mc,
+                q[0],
+                q[1],
+                q[2],
+                q[3],
+                prt,
+                p1,
+                p1n
+            );
         }
         agg[class][0] += (prt - q[3]).powi(2);
         agg[class][1] += q[3] * q[3];
@@ -528,9 +1101,33 @@ fn sharp_lobe_quadrature() {
     }
     for (class, name) in ["worst", "random", "grazing"].iter().enumerate() {
         let r = |j: usize| 100.0 * (acc[class][j][0] / acc[class][j][1]).sqrt();
-        println!("{name} pixels, relative RMSE against Q_mc: MC {:.2} %, PRT {:.2} %, Q_geo {:.2} %, Q_leafL {:.2} %, Q_cutV {:.2} %, PRT 1° {:.2} %, PRT 1° unfiltered {:.2} %", r(0), r(1), r(2), r(3), r(4), r(5), r(6));
-        println!("    against Q_cutV (the PRT's own inputs): PRT {:.2} %, PRT 1° unfiltered {:.2} %; Q with the map's own L and the cuts' V against Q_mc: {:.2} %", 100.0 * (agg[class][0] / agg[class][1]).sqrt(), 100.0 * (agg[class][2] / agg[class][1]).sqrt(), 100.0 * (agg[class][3] / acc[class][0][1]).sqrt());
+        println!(
+            "{name} pixels, relative RMSE against Q_mc: MC {:.2} %, PRT {:.2} %, Q_geo {:.2} %, Q_leafL {:.2} %, Q_cutV {:.2} %, PRT 1° {:.2} %, PRT 1° unfiltered {:.2} %",
+            r(0),
+            r(1),
+            r(2),
+            r(3),
+            r(4),
+            r(5),
+            r(6)
+        );
+        println!(
+            "    against Q_cutV (the PRT's own inputs): PRT {:.2} %, PRT 1° unfiltered {:.2} %; Q with the map's own L and the cuts' V against Q_mc: {:.2} %",
+            100.0 * (agg[class][0] / agg[class][1]).sqrt(),
+            100.0 * (agg[class][2] / agg[class][1]).sqrt(),
+            100.0 * (agg[class][3] / acc[class][0][1]).sqrt()
+        );
     }
-    println!("{} pixels in {:.1} s", chosen.len(), t0.elapsed().as_secs_f64());
-    println!("PRT with the grazing pixels (every {stride}th) patched: vs MC object {:.2} %, silhouette {:.2} % (unpatched {:.2} %, {:.2} %)", 100.0 * rmse_where(&patched, &pair.mc, None), 100.0 * rmse_where(&patched, &pair.mc, Some(&sil)), 100.0 * rmse_where(&pair.prt, &pair.mc, None), 100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil)));
+    println!(
+        "{} pixels in {:.1} s",
+        chosen.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    println!(
+        "PRT with the grazing pixels (every {stride}th) patched: vs MC object {:.2} %, silhouette {:.2} % (unpatched {:.2} %, {:.2} %)",
+        100.0 * rmse_where(&patched, &pair.mc, None),
+        100.0 * rmse_where(&patched, &pair.mc, Some(&sil)),
+        100.0 * rmse_where(&pair.prt, &pair.mc, None),
+        100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil))
+    );
 }

@@ -2,23 +2,26 @@
 //! reference over meshes × environment maps × views × environment rotations × materials, with the
 //! silhouette pixels (object pixels with a background 4-neighbour) reported apart.
 //!
-//! Materials: `sharp` — one ring lobe at the normal, λ = 81 (σ = π/40), little diffuse; `broad` — ring
-//! lobes of λ = 10 spread over the polar angles, a diffuse base; `anisotropic` — a hemicube-5 lobe
-//! stretched along the tangent (λ = 40), on meshes with a tangent field only. Views: the default
-//! camera, an orbit (20°, 15°, 2.5 radii) and a grazing orbit (200°, 3°, 2.5 radii). Rotations 0° and
-//! 90°. Each (mesh, map) is baked once with the default settings (and its decisions); each case's
-//! reference is rendered on the imported mesh, as `glint render --reference` does.
+//! Materials: `sharp` — one ring lobe at the normal, λ = 81 (σ = π/40), little diffuse; `broad` —
+//! ring lobes of λ = 10 spread over the polar angles, a diffuse base; `anisotropic` — a hemicube-5
+//! lobe stretched along the tangent (λ = 40), on meshes with a tangent field only. Views: the
+//! default camera, an orbit (20°, 15°, 2.5 radii) and a grazing orbit (200°, 3°, 2.5 radii).
+//! Rotations 0° and 90°. Each (mesh, map) is baked once with the default settings (and its
+//! decisions); each case's reference is rendered on the imported mesh, as `glint render
+//! --reference` does.
 //!
 //! Inputs: scenes and maps ([`run`]: the caller loads them; [`run_study`]: the bundled samples and
 //! the shared assets, read here), [`MatrixOptions`]. Outputs: [`MatrixRow`]s and their Markdown/CSV
-//! ([`markdown`], [`csv`]; [`run_study`] writes them). Invariants: references are seeded, so two runs
-//! give the same errors.
+//! ([`markdown`], [`csv`]; [`run_study`] writes them). Invariants: references are seeded, so two
+//! runs give the same errors.
 
 use crate::bake::{BakeSettings, Baker, Tracer};
 use crate::env::EnvMap;
 use crate::fit::material::{FitStats, Material};
 use crate::light::LightSums;
-use crate::render::{ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table};
+use crate::render::{
+    ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table,
+};
 use crate::scene::{Bounds, Camera, Mesh, Scene, default_camera, orbit_camera};
 use crate::sphere::{LobeLayout, LobeSet, srbf};
 use crate::study::StudyError;
@@ -35,9 +38,15 @@ pub struct MatrixOptions {
 
 impl MatrixOptions {
     /// The documented matrix: 128×96, 1024 spp.
-    pub const FULL: MatrixOptions = MatrixOptions { size: (128, 96), spp: 1024 };
+    pub const FULL: MatrixOptions = MatrixOptions {
+        size: (128, 96),
+        spp: 1024,
+    };
     /// A small one (CI): 64×48, 1024 spp.
-    pub const QUICK: MatrixOptions = MatrixOptions { size: (64, 48), spp: 1024 };
+    pub const QUICK: MatrixOptions = MatrixOptions {
+        size: (64, 48),
+        spp: 1024,
+    };
 }
 
 /// What `glint study --matrix` did: the rows, the report's title and the files written.
@@ -48,27 +57,74 @@ pub struct MatrixStudy {
 }
 
 impl MatrixStudy {
-    /// One line: how many cases meet 2 % (object pixels) and 4 % (silhouette pixels), and the worst.
+    /// One line: how many cases meet 2 % (object pixels) and 4 % (silhouette pixels), and the
+    /// worst.
     pub fn summary(&self) -> String {
-        let ok = self.rows.iter().filter(|r| r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)).count();
-        let worst = self.rows.iter().max_by(|a, b| a.rel_rmse.total_cmp(&b.rel_rmse));
-        let worst = worst.map(|r| format!("; worst {:.2} %: {} under {}, {}, {}°, {}", 100.0 * r.rel_rmse, r.mesh, r.map, r.view, r.rotation_deg, r.material));
-        format!("{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}", self.rows.len(), worst.unwrap_or_default())
+        let ok = self
+            .rows
+            .iter()
+            .filter(|r| {
+                r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)
+            })
+            .count();
+        let worst = self
+            .rows
+            .iter()
+            .max_by(|a, b| a.rel_rmse.total_cmp(&b.rel_rmse));
+        let worst = worst.map(|r| {
+            format!(
+                "; worst {:.2} %: {} under {}, {}, {}°, {}",
+                100.0 * r.rel_rmse,
+                r.mesh,
+                r.map,
+                r.view,
+                r.rotation_deg,
+                r.material
+            )
+        });
+        format!(
+            "{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}",
+            self.rows.len(),
+            worst.unwrap_or_default()
+        )
     }
 }
 
 /// `glint study --matrix`: loads the meshes and maps (the bundled samples; dragon_100k and the
-/// interior map from `assets`; `quick`: the bunny and the brushed sphere under the studio map), runs
-/// the matrix and writes matrix.md and matrix.csv into `out`.
-pub fn run_study(samples: &std::path::Path, assets: &std::path::Path, quick: bool, out: &std::path::Path, progress: &dyn Fn(usize, usize, &str)) -> Result<MatrixStudy, StudyError> {
-    let need = |p: std::path::PathBuf| if p.is_file() { Ok(p) } else { Err(StudyError::Input(format!("the accuracy matrix needs {} (see --assets)", p.display()))) };
+/// interior map from `assets`; `quick`: the bunny and the brushed sphere under the studio map),
+/// runs the matrix and writes matrix.md and matrix.csv into `out`.
+pub fn run_study(
+    samples: &std::path::Path,
+    assets: &std::path::Path,
+    quick: bool,
+    out: &std::path::Path,
+    progress: &dyn Fn(usize, usize, &str),
+) -> Result<MatrixStudy, StudyError> {
+    let need = |p: std::path::PathBuf| {
+        if p.is_file() {
+            Ok(p)
+        } else {
+            Err(StudyError::Input(format!(
+                "the accuracy matrix needs {} (see --assets)",
+                p.display()
+            )))
+        }
+    };
     let mut meshes = vec![("bunny", need(samples.join("bunny.glb"))?, None)];
     if !quick {
         meshes.push(("teapot", need(samples.join("teapot.glb"))?, None));
         meshes.push(("suzanne", need(samples.join("suzanne.glb"))?, None));
-        meshes.push(("dragon_100k patch", need(assets.join("glb/dragon_100k.glb"))?, Some(0.3)));
+        meshes.push((
+            "dragon_100k patch",
+            need(assets.join("glb/dragon_100k.glb"))?,
+            Some(0.3),
+        ));
     }
-    meshes.push(("brushed sphere", need(samples.join("brushed_sphere.glb"))?, None));
+    meshes.push((
+        "brushed sphere",
+        need(samples.join("brushed_sphere.glb"))?,
+        None,
+    ));
     let mut maps = vec![("studio", need(samples.join("studio_1k.exr"))?)];
     if !quick {
         maps.push(("courtyard", need(samples.join("courtyard_1k.exr"))?));
@@ -79,12 +135,21 @@ pub fn run_study(samples: &std::path::Path, assets: &std::path::Path, quick: boo
         let mut scene = crate::scene::import(&path)?;
         if let Some(f) = fraction {
             scene.mesh = patch(&scene.mesh, f);
-            scene.bounds = Bounds::from_points(&scene.mesh.positions).ok_or_else(|| StudyError::Input(format!("{}: the patch is empty", path.display())))?;
+            scene.bounds = Bounds::from_points(&scene.mesh.positions).ok_or_else(|| {
+                StudyError::Input(format!("{}: the patch is empty", path.display()))
+            })?;
         }
         scenes.push((name.to_string(), scene));
     }
-    let envs = maps.into_iter().map(|(n, p)| Ok((n.to_string(), crate::env::load(&p)?))).collect::<Result<Vec<_>, StudyError>>()?;
-    let options = if quick { MatrixOptions::QUICK } else { MatrixOptions::FULL };
+    let envs = maps
+        .into_iter()
+        .map(|(n, p)| Ok((n.to_string(), crate::env::load(&p)?)))
+        .collect::<Result<Vec<_>, StudyError>>()?;
+    let options = if quick {
+        MatrixOptions::QUICK
+    } else {
+        MatrixOptions::FULL
+    };
     let start = Instant::now();
     let rows = run(&scenes, &envs, options, progress)?;
     let title = format!(
@@ -97,14 +162,27 @@ pub fn run_study(samples: &std::path::Path, assets: &std::path::Path, quick: boo
         start.elapsed().as_secs_f64(),
         rayon::current_num_threads()
     );
-    std::fs::create_dir_all(out).map_err(|e| StudyError::Write { path: out.display().to_string(), reason: e.to_string() })?;
+    std::fs::create_dir_all(out).map_err(|e| StudyError::Write {
+        path: out.display().to_string(),
+        reason: e.to_string(),
+    })?;
     let mut written = Vec::new();
-    for (name, text) in [("matrix.md", markdown(&rows, &title)), ("matrix.csv", csv(&rows))] {
+    for (name, text) in [
+        ("matrix.md", markdown(&rows, &title)),
+        ("matrix.csv", csv(&rows)),
+    ] {
         let p = out.join(name);
-        glint_exporters::write_atomic(&p, text.as_bytes()).map_err(|e| StudyError::Write { path: p.display().to_string(), reason: e.to_string() })?;
+        glint_exporters::write_atomic(&p, text.as_bytes()).map_err(|e| StudyError::Write {
+            path: p.display().to_string(),
+            reason: e.to_string(),
+        })?;
         written.push(p);
     }
-    Ok(MatrixStudy { rows, title, written })
+    Ok(MatrixStudy {
+        rows,
+        title,
+        written,
+    })
 }
 
 /// One case of the matrix.
@@ -121,8 +199,8 @@ pub struct MatrixRow {
     pub silhouette_rel_rmse: f64,
     pub object_pixels: usize,
     pub silhouette_pixels: usize,
-    /// The reference's own noise: relative RMSE over object pixels between it and a second reference
-    /// with another seed, divided by √2.
+    /// The reference's own noise: relative RMSE over object pixels between it and a second
+    /// reference with another seed, divided by √2.
     pub reference_noise: f64,
     pub prt_secs: f64,
     pub reference_secs: f64,
@@ -131,7 +209,9 @@ pub struct MatrixRow {
 impl MatrixRow {
     /// The PRT's own error: the RMSE with the reference's noise taken out in quadrature.
     pub fn error_less_noise(&self) -> f64 {
-        (self.rel_rmse.powi(2) - self.reference_noise.powi(2)).max(0.0).sqrt()
+        (self.rel_rmse.powi(2) - self.reference_noise.powi(2))
+            .max(0.0)
+            .sqrt()
     }
 }
 
@@ -141,8 +221,14 @@ pub fn views(bounds: &Bounds, (w, h): (u32, u32)) -> Vec<(String, Camera)> {
     default.aspect = w as f32 / h as f32;
     vec![
         ("default".into(), default),
-        ("orbit 20°/15°/2.5".into(), orbit_camera(bounds, 20.0, 15.0, 2.5, w, h)),
-        ("grazing 200°/3°/2.5".into(), orbit_camera(bounds, 200.0, 3.0, 2.5, w, h)),
+        (
+            "orbit 20°/15°/2.5".into(),
+            orbit_camera(bounds, 20.0, 15.0, 2.5, w, h),
+        ),
+        (
+            "grazing 200°/3°/2.5".into(),
+            orbit_camera(bounds, 200.0, 3.0, 2.5, w, h),
+        ),
     ]
 }
 
@@ -150,21 +236,61 @@ pub fn views(bounds: &Bounds, (w, h): (u32, u32)) -> Vec<(String, Camera)> {
 pub fn materials(tangents: bool) -> Vec<(String, Material)> {
     let iso = |lambda: f64, rho_d: f64, c: &dyn Fn(f64) -> f64| -> Material {
         // Cannot fail: a fixed, valid layout (24 lobes) and λ ∈ {10, 81.06} > 0.
-        let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, lambda).expect("isotropic-24");
-        let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [1.0, 0.9, 0.8][ch] * c(x.z.clamp(-1.0, 1.0).acos())).collect());
+        let lobes =
+            LobeSet::new(LobeLayout::Isotropic { count: 24 }, lambda).expect("isotropic-24");
+        let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| {
+            lobes
+                .centres()
+                .iter()
+                .map(|x| [1.0, 0.9, 0.8][ch] * c(x.z.clamp(-1.0, 1.0).acos()))
+                .collect()
+        });
         let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(0.0);
-        Material::new(&lobes, sigma, coefficients, [rho_d; 3], 0.04, FitStats::default())
+        Material::new(
+            &lobes,
+            sigma,
+            coefficients,
+            [rho_d; 3],
+            0.04,
+            FitStats::default(),
+        )
     };
     let mut out = vec![
-        ("sharp".to_string(), iso(srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap_or(81.06), 0.05, &|theta| if theta == 0.0 { 20.0 } else { 0.0 })),
-        ("broad".to_string(), iso(10.0, 0.3, &|theta| 0.6 * (-(theta / 0.6).powi(2)).exp())),
+        (
+            "sharp".to_string(),
+            iso(
+                srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap_or(81.06),
+                0.05,
+                &|theta| if theta == 0.0 { 20.0 } else { 0.0 },
+            ),
+        ),
+        (
+            "broad".to_string(),
+            iso(10.0, 0.3, &|theta| 0.6 * (-(theta / 0.6).powi(2)).exp()),
+        ),
     ];
     if tangents {
         // Cannot fail: a fixed, valid layout (75 lobes) and λ = 40.
         let lobes = LobeSet::new(LobeLayout::Hemicube { n: 5 }, 40.0).expect("hemicube-5");
-        let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| lobes.centres().iter().map(|x| [1.2, 1.0, 0.8][ch] * (-(x.x / 0.6).powi(2) - (x.y / 0.15).powi(2)).exp()).collect());
+        let coefficients: [Vec<f64>; 3] = std::array::from_fn(|ch| {
+            lobes
+                .centres()
+                .iter()
+                .map(|x| [1.2, 1.0, 0.8][ch] * (-(x.x / 0.6).powi(2) - (x.y / 0.15).powi(2)).exp())
+                .collect()
+        });
         let sigma = srbf::sigma_from_lambda(40.0).unwrap_or(0.0);
-        out.push(("anisotropic".into(), Material::new(&lobes, sigma, coefficients, [0.15, 0.12, 0.1], 0.3, FitStats::default())));
+        out.push((
+            "anisotropic".into(),
+            Material::new(
+                &lobes,
+                sigma,
+                coefficients,
+                [0.15, 0.12, 0.1],
+                0.3,
+                FitStats::default(),
+            ),
+        ));
     }
     out
 }
@@ -172,11 +298,21 @@ pub fn materials(tangents: bool) -> Vec<(String, Material)> {
 /// Object pixels of `img` with a background 4-neighbour (or on the image border).
 pub fn silhouette_mask(img: &Image) -> Vec<bool> {
     let (w, h) = (img.width as usize, img.height as usize);
-    let covered = |x: isize, y: isize| x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h && img.covered[y as usize * w + x as usize];
+    let covered = |x: isize, y: isize| {
+        x >= 0
+            && y >= 0
+            && (x as usize) < w
+            && (y as usize) < h
+            && img.covered[y as usize * w + x as usize]
+    };
     (0..w * h)
         .map(|k| {
             let (x, y) = ((k % w) as isize, (k / w) as isize);
-            img.covered[k] && !(covered(x - 1, y) && covered(x + 1, y) && covered(x, y - 1) && covered(x, y + 1))
+            img.covered[k]
+                && !(covered(x - 1, y)
+                    && covered(x + 1, y)
+                    && covered(x, y - 1)
+                    && covered(x, y + 1))
         })
         .collect()
 }
@@ -193,18 +329,33 @@ pub fn masked_rel_rmse(a: &Image, b: &Image, mask: &[bool]) -> (f64, usize) {
             n += 1;
         }
     }
-    if n == 0 || den == 0.0 { (f64::NAN, 0) } else { ((num / den).sqrt(), n) }
+    if n == 0 || den == 0.0 {
+        (f64::NAN, 0)
+    } else {
+        ((num / den).sqrt(), n)
+    }
 }
 
 /// A patch of a mesh: the triangles whose centroid lies within `fraction` of the bounding box's x
 /// extent from its +x end (re-indexed; normals and tangents kept).
 pub fn patch(mesh: &Mesh, fraction: f32) -> Mesh {
-    let Some(bounds) = Bounds::from_points(&mesh.positions) else { return mesh.clone() };
+    let Some(bounds) = Bounds::from_points(&mesh.positions) else {
+        return mesh.clone();
+    };
     let cut = bounds.max.x - fraction * bounds.size().x;
     let mut map = vec![u32::MAX; mesh.positions.len()];
-    let mut out = Mesh { positions: Vec::new(), normals: Vec::new(), tangents: mesh.tangents.as_ref().map(|_| Vec::new()), uvs: mesh.uvs.as_ref().map(|_| Vec::new()), triangles: Vec::new() };
+    let mut out = Mesh {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        tangents: mesh.tangents.as_ref().map(|_| Vec::new()),
+        uvs: mesh.uvs.as_ref().map(|_| Vec::new()),
+        triangles: Vec::new(),
+    };
     for tri in &mesh.triangles {
-        let c = (mesh.positions[tri[0] as usize] + mesh.positions[tri[1] as usize] + mesh.positions[tri[2] as usize]) / 3.0;
+        let c = (mesh.positions[tri[0] as usize]
+            + mesh.positions[tri[1] as usize]
+            + mesh.positions[tri[2] as usize])
+            / 3.0;
         if c.x < cut {
             continue;
         }
@@ -229,7 +380,12 @@ pub fn patch(mesh: &Mesh, fraction: f32) -> Mesh {
 }
 
 /// Runs the matrix over every (scene, map) pair; `progress(done, total, what)`.
-pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: MatrixOptions, progress: &dyn Fn(usize, usize, &str)) -> Result<Vec<MatrixRow>, StudyError> {
+pub fn run(
+    scenes: &[(String, Scene)],
+    maps: &[(String, EnvMap)],
+    options: MatrixOptions,
+    progress: &dyn Fn(usize, usize, &str),
+) -> Result<Vec<MatrixRow>, StudyError> {
     let (w, h) = options.size;
     let mut rows = Vec::new();
     let total = scenes.len() * maps.len();
@@ -237,34 +393,101 @@ pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: Matri
         let tracer = Tracer::new(&scene.mesh);
         let (_, ref_tangents, _) = crate::bake::decisions::decide_frames(&scene.mesh);
         for (j, (map_name, env)) in maps.iter().enumerate() {
-            progress(i * maps.len() + j, total, &format!("{mesh_name} under {map_name}: baking"));
+            progress(
+                i * maps.len() + j,
+                total,
+                &format!("{mesh_name} under {map_name}: baking"),
+            );
             let baker = Baker::new(scene, env, BakeSettings::default())?;
             let bake = baker.bake_refined(None, &|_| {});
             let refined = bake.scene(scene)?;
             let (_, tangents, _) = crate::bake::decisions::decide_frames(&refined.mesh);
-            let prt = Prt::new(&refined.mesh, &bake.cuts, &baker.tree, tangents.as_deref(), PrtSettings::default());
-            progress(i * maps.len() + j, total, &format!("{mesh_name} under {map_name}: rendering"));
+            let prt = Prt::new(
+                &refined.mesh,
+                &bake.cuts,
+                &baker.tree,
+                tangents.as_deref(),
+                PrtSettings::default(),
+            );
+            progress(
+                i * maps.len() + j,
+                total,
+                &format!("{mesh_name} under {map_name}: rendering"),
+            );
             // The light sums depend on the rotation only: once per rotation, not per view.
             for rotation_deg in [0.0, 90.0] {
                 let rotation = f64::to_radians(rotation_deg);
                 let light = LightSums::new(env, &baker.set, &baker.tree, rotation);
                 for (view_name, camera) in views(&scene.bounds, options.size) {
-                    for (material_name, m) in materials(tangents.is_some() && ref_tangents.is_some()) {
+                    for (material_name, m) in
+                        materials(tangents.is_some() && ref_tangents.is_some())
+                    {
                         let lobes = m.lobes()?;
-                        let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+                        let coefficients = [
+                            m.coefficients[0].as_slice(),
+                            m.coefficients[1].as_slice(),
+                            m.coefficients[2].as_slice(),
+                        ];
                         let t0 = Instant::now();
-                        let tab = PhTable::build(&lobes, coefficients, table::default_resolution(lobes.lambda()));
-                        let img = prt.render(&light, &camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&tab) });
+                        let tab = PhTable::build(
+                            &lobes,
+                            coefficients,
+                            table::default_resolution(lobes.lambda()),
+                        );
+                        let img = prt.render(
+                            &light,
+                            &camera,
+                            w,
+                            h,
+                            &Shading {
+                                rho_d: m.rho_d,
+                                f0: m.f0,
+                                specular: Specular::Table(&tab),
+                            },
+                        );
                         let prt_secs = t0.elapsed().as_secs_f64();
                         let t0 = Instant::now();
-                        let exact = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
-                        let truth = render_reference(&scene.mesh, ref_tangents.as_deref(), &tracer, baker.ray_offset(), env, rotation, exact, &camera, w, h, options.spp, 1);
+                        let exact = ExactMaterial {
+                            lobes: &lobes,
+                            coefficients,
+                            rho_d: m.rho_d,
+                            f0: m.f0,
+                        };
+                        let truth = render_reference(
+                            &scene.mesh,
+                            ref_tangents.as_deref(),
+                            &tracer,
+                            baker.ray_offset(),
+                            env,
+                            rotation,
+                            exact,
+                            &camera,
+                            w,
+                            h,
+                            options.spp,
+                            1,
+                        );
                         let reference_secs = t0.elapsed().as_secs_f64();
-                        let second = render_reference(&scene.mesh, ref_tangents.as_deref(), &tracer, baker.ray_offset(), env, rotation, exact, &camera, w, h, options.spp, 2);
+                        let second = render_reference(
+                            &scene.mesh,
+                            ref_tangents.as_deref(),
+                            &tracer,
+                            baker.ray_offset(),
+                            env,
+                            rotation,
+                            exact,
+                            &camera,
+                            w,
+                            h,
+                            options.spp,
+                            2,
+                        );
                         let all = vec![true; truth.pixels.len()];
-                        let reference_noise = masked_rel_rmse(&second, &truth, &all).0 / std::f64::consts::SQRT_2;
+                        let reference_noise =
+                            masked_rel_rmse(&second, &truth, &all).0 / std::f64::consts::SQRT_2;
                         let (rel_rmse, object_pixels) = masked_rel_rmse(&img, &truth, &all);
-                        let (silhouette_rel_rmse, silhouette_pixels) = masked_rel_rmse(&img, &truth, &silhouette_mask(&truth));
+                        let (silhouette_rel_rmse, silhouette_pixels) =
+                            masked_rel_rmse(&img, &truth, &silhouette_mask(&truth));
                         rows.push(MatrixRow {
                             mesh: mesh_name.clone(),
                             map: map_name.clone(),
@@ -290,11 +513,24 @@ pub fn run(scenes: &[(String, Scene)], maps: &[(String, EnvMap)], options: Matri
 
 /// The matrix as CSV (one row per case).
 pub fn csv(rows: &[MatrixRow]) -> String {
-    let mut out = String::from("mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,prt_secs,reference_secs\n");
+    let mut out = String::from(
+        "mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,prt_secs,reference_secs\n",
+    );
     for r in rows {
         out.push_str(&format!(
             "{},{},{},{},{},{:.5},{:.5},{},{},{:.5},{:.4},{:.3}\n",
-            r.mesh, r.map, r.view, r.rotation_deg, r.material, r.rel_rmse, r.silhouette_rel_rmse, r.object_pixels, r.silhouette_pixels, r.reference_noise, r.prt_secs, r.reference_secs
+            r.mesh,
+            r.map,
+            r.view,
+            r.rotation_deg,
+            r.material,
+            r.rel_rmse,
+            r.silhouette_rel_rmse,
+            r.object_pixels,
+            r.silhouette_pixels,
+            r.reference_noise,
+            r.prt_secs,
+            r.reference_secs
         ));
     }
     out
@@ -303,9 +539,15 @@ pub fn csv(rows: &[MatrixRow]) -> String {
 /// The matrix as Markdown: a summary against the goals (2 % over object pixels, 4 % over silhouette
 /// pixels), the worst cases, then every case.
 pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
-    let within = |r: &MatrixRow| r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04);
+    let within = |r: &MatrixRow| {
+        r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)
+    };
     let ok = rows.iter().filter(|r| within(r)).count();
-    let mut out = format!("# {title}\n\n{} of {} cases within 2 % over object pixels and 4 % over silhouette pixels.\n\n", ok, rows.len());
+    let mut out = format!(
+        "# {title}\n\n{} of {} cases within 2 % over object pixels and 4 % over silhouette pixels.\n\n",
+        ok,
+        rows.len()
+    );
     let mut worst: Vec<&MatrixRow> = rows.iter().collect();
     worst.sort_by(|a, b| b.rel_rmse.total_cmp(&a.rel_rmse));
     out.push_str("Relative RMSE of the PRT frame against the reference over object pixels and over silhouette pixels (count in brackets); the reference's own noise beside it, and the PRT's error with that noise taken out (√(RMSE² − noise²)).\n\n");
@@ -332,8 +574,8 @@ mod tests {
             }
         }
         let m = silhouette_mask(&img);
-        // The 3×3 block touching the bottom edge: only its centre column's upper-middle pixel (2, 2)
-        // has four covered neighbours.
+        // The 3×3 block touching the bottom edge: only its centre column's upper-middle pixel (2,
+        // 2) has four covered neighbours.
         let count = m.iter().filter(|&&b| b).count();
         assert_eq!(count, 8);
         assert!(!m[2 * 5 + 2]);
@@ -347,13 +589,22 @@ mod tests {
         for k in 0..10 {
             let x = k as f32;
             let base = mesh.positions.len() as u32;
-            mesh.positions.extend([glam::Vec3::new(x, 0.0, 0.0), glam::Vec3::new(x + 0.5, 1.0, 0.0), glam::Vec3::new(x + 1.0, 0.0, 0.0)]);
+            mesh.positions.extend([
+                glam::Vec3::new(x, 0.0, 0.0),
+                glam::Vec3::new(x + 0.5, 1.0, 0.0),
+                glam::Vec3::new(x + 1.0, 0.0, 0.0),
+            ]);
             mesh.normals.extend([glam::Vec3::Z; 3]);
             mesh.triangles.push([base, base + 2, base + 1]);
         }
         let p = patch(&mesh, 0.3);
         assert_eq!(p.triangles.len(), 3);
         assert_eq!(p.positions.len(), 9);
-        assert!(p.triangles.iter().flatten().all(|&i| (i as usize) < p.positions.len()));
+        assert!(
+            p.triangles
+                .iter()
+                .flatten()
+                .all(|&i| (i as usize) < p.positions.len())
+        );
     }
 }

@@ -1,8 +1,9 @@
 //! `glint inspect`: what was imported, as plain data (the CLI prints it as text or JSON).
 //!
-//! Inputs: an imported [`Scene`] and optionally an [`EnvMap`]. Output: an [`InspectReport`] whose JSON
-//! form has at least the keys `meshes`, `vertices`, `triangles`, `cameras`, and `env` → `width`,
-//! `height`, `clamped_texels`. Invariant: no IO here; the report is a pure function of its inputs.
+//! Inputs: an imported [`Scene`] and optionally an [`EnvMap`]. Output: an [`InspectReport`] whose
+//! JSON form has at least the keys `meshes`, `vertices`, `triangles`, `cameras`, and `env` →
+//! `width`, `height`, `clamped_texels`. Invariant: no IO here; the report is a pure function of its
+//! inputs.
 
 use crate::env::EnvMap;
 use crate::scene::{AttributeSource, PartInfo, Scene};
@@ -23,8 +24,9 @@ pub struct InspectReport {
     /// Camera names; a file without perspective cameras gets one named "default".
     pub cameras: Vec<String>,
     pub default_camera: bool,
-    /// For each attribute: "present" (every part had it), "generated" (computed by glint for at least
-    /// one part), "absent" (no part had it) or "partial" (some parts had it, so the merged mesh has none).
+    /// For each attribute: "present" (every part had it), "generated" (computed by glint for at
+    /// least one part), "absent" (no part had it) or "partial" (some parts had it, so the merged
+    /// mesh has none).
     pub normals: String,
     pub tangents: String,
     pub uvs: String,
@@ -83,7 +85,11 @@ pub fn report(scene: &Scene, env: Option<&EnvMap>) -> InspectReport {
         primitives: scene.parts.len(),
         vertices: scene.mesh.positions.len(),
         triangles: scene.mesh.triangles.len(),
-        bounds: BoundsReport { min: b.min.to_array(), max: b.max.to_array(), size: b.size().to_array() },
+        bounds: BoundsReport {
+            min: b.min.to_array(),
+            max: b.max.to_array(),
+            size: b.size().to_array(),
+        },
         cameras: scene.cameras.iter().map(|c| c.name.clone()).collect(),
         default_camera: scene.cameras.iter().any(|c| c.is_default),
         normals: summarise(&scene.parts, |p| p.normals),
@@ -110,7 +116,11 @@ impl InspectReport {
     pub fn to_text(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "scene      {}", self.file);
-        let _ = writeln!(s, "meshes     {} ({} triangle primitives)", self.meshes, self.primitives);
+        let _ = writeln!(
+            s,
+            "meshes     {} ({} triangle primitives)",
+            self.meshes, self.primitives
+        );
         let _ = writeln!(s, "vertices   {}", self.vertices);
         let _ = writeln!(s, "triangles  {}", self.triangles);
         let (mn, mx, sz) = (self.bounds.min, self.bounds.max, self.bounds.size);
@@ -120,32 +130,62 @@ impl InspectReport {
             mn[0], mn[1], mn[2], mx[0], mx[1], mx[2], sz[0], sz[1], sz[2]
         );
         let cams = if self.default_camera {
-            format!("{} (none in the file: framing the bounds, 640x480)", self.cameras.join(", "))
+            format!(
+                "{} (none in the file: framing the bounds, 640x480)",
+                self.cameras.join(", ")
+            )
         } else {
             self.cameras.join(", ")
         };
         let _ = writeln!(s, "cameras    {cams}");
-        let _ = writeln!(s, "normals    {}{}", self.normals, fallback_note(self.normal_fallbacks));
+        let _ = writeln!(
+            s,
+            "normals    {}{}",
+            self.normals,
+            fallback_note(self.normal_fallbacks)
+        );
         let _ = writeln!(s, "tangents   {}", self.tangents);
         let _ = writeln!(s, "uvs        {}", self.uvs);
         if self.skipped_primitives > 0 {
-            let _ = writeln!(s, "skipped    {} non-triangle primitives", self.skipped_primitives);
+            let _ = writeln!(
+                s,
+                "skipped    {} non-triangle primitives",
+                self.skipped_primitives
+            );
         }
         for w in &self.warnings {
             let _ = writeln!(s, "warning    {w}");
         }
         if let Some(e) = &self.env {
             let _ = writeln!(s, "env        {}", e.file);
-            let _ = writeln!(s, "  size     {} x {}{}", e.width, e.height, if e.two_to_one { "" } else { " (not 2:1)" });
+            let _ = writeln!(
+                s,
+                "  size     {} x {}{}",
+                e.width,
+                e.height,
+                if e.two_to_one { "" } else { " (not 2:1)" }
+            );
             let _ = writeln!(s, "  peak     {:.6}", e.peak);
             let m = e.mean_radiance;
-            let _ = writeln!(s, "  mean     {:.6} {:.6} {:.6} (RGB, solid-angle weighted)", m[0], m[1], m[2]);
-            let _ = writeln!(s, "  clamped  {} texels (negative, NaN or infinite, set to 0)", e.clamped_texels);
+            let _ = writeln!(
+                s,
+                "  mean     {:.6} {:.6} {:.6} (RGB, solid-angle weighted)",
+                m[0], m[1], m[2]
+            );
+            let _ = writeln!(
+                s,
+                "  clamped  {} texels (negative, NaN or infinite, set to 0)",
+                e.clamped_texels
+            );
         }
         s
     }
 }
 
 fn fallback_note(n: usize) -> String {
-    if n == 0 { String::new() } else { format!(" ({n} vertices needed a fallback normal)") }
+    if n == 0 {
+        String::new()
+    } else {
+        format!(" ({n} vertices needed a fallback normal)")
+    }
 }

@@ -1,14 +1,15 @@
-//! Light sums: the environment's radiance integrated over the light tree's leaves and nodes, for any
-//! rotation of the environment about +Y (method.md §4: L_k, the mean radiance over node k).
+//! Light sums: the environment's radiance integrated over the light tree's leaves and nodes, for
+//! any rotation of the environment about +Y (method.md §4: L_k, the mean radiance over node k).
 //!
-//! Inputs: an [`EnvMap`], the [`DirectionSet`] and its [`LightTree`], a rotation (radians). Outputs:
-//! per leaf (tree order) the mean radiance over its texel, and prefix sums over tree order of Ω·L, Ω and
-//! Ω·d, so the radiance, solid angle and mean direction of any node — or of any run of consecutive
-//! leaves — cost O(1).
+//! Inputs: an [`EnvMap`], the [`DirectionSet`] and its [`LightTree`], a rotation (radians).
+//! Outputs: per leaf (tree order) the mean radiance over its texel, and prefix sums over tree order
+//! of Ω·L, Ω and Ω·d, so the radiance, solid angle and mean direction of any node — or of any run
+//! of consecutive leaves — cost O(1).
 //!
-//! Each texel's mean radiance is the smooth part of the map (clamped at 16× its mean) supersampled with
-//! the exact cube-face Jacobian, plus the power of what exceeds the clamp (suns) binned into the texel
-//! that holds it (see [`texel_radiance`]): the white furnace is exact and a sun's energy is conserved.
+//! Each texel's mean radiance is the smooth part of the map (clamped at 16× its mean) supersampled
+//! with the exact cube-face Jacobian, plus the power of what exceeds the clamp (suns) binned into
+//! the texel that holds it (see [`texel_radiance`]): the white furnace is exact and a sun's energy
+//! is conserved.
 //!
 //! Rotating the environment by θ is the same as rotating every direction by −θ before the lookup
 //! (`EnvMap::lookup` does this), so a new rotation costs one pass over the samples and needs no new
@@ -31,15 +32,15 @@ pub struct LightSums {
     prefix_omega: Vec<f64>,
     /// prefix_moment[i] = Σ_{l<i} ∫_l ω dω (exact texel moments).
     prefix_moment: Vec<DVec3>,
-    /// prefix_radiant_moment[i][c] = Σ_{l<i} L_l,c ∫_l ω dω: per channel, the radiance-weighted moment
-    /// (its dot with a normal is the cosine-weighted power of leaves above the horizon; its direction is
-    /// where the light of a run comes from).
+    /// prefix_radiant_moment[i][c] = Σ_{l<i} L_l,c ∫_l ω dω: per channel, the radiance-weighted
+    /// moment (its dot with a normal is the cosine-weighted power of leaves above the horizon; its
+    /// direction is where the light of a run comes from).
     prefix_radiant_moment: Vec<[DVec3; 3]>,
 }
 
-/// An environment prepared for light sums at any rotation: radiance split at τ = 16 × the map's mean
-/// (per channel) into a smooth *base* min(L, τ) and the *excess* max(L − τ, 0) of the few texels above
-/// it (suns, lamps), the latter as sub-sampled point powers.
+/// An environment prepared for light sums at any rotation: radiance split at τ = 16 × the map's
+/// mean (per channel) into a smooth *base* min(L, τ) and the *excess* max(L − τ, 0) of the few
+/// texels above it (suns, lamps), the latter as sub-sampled point powers.
 #[derive(Debug)]
 pub struct LightSource {
     base: EnvMap,
@@ -53,13 +54,18 @@ pub struct LightSource {
 impl Clone for LightSource {
     fn clone(&self) -> Self {
         let samples = self.samples.lock().map(|s| s.clone()).unwrap_or(None);
-        Self { base: self.base.clone(), excess: self.excess.clone(), env_texel_angle: self.env_texel_angle, samples: std::sync::Mutex::new(samples) }
+        Self {
+            base: self.base.clone(),
+            excess: self.excess.clone(),
+            env_texel_angle: self.env_texel_angle,
+            samples: std::sync::Mutex::new(samples),
+        }
     }
 }
 
-/// Where the base part is read for each direction-set texel: k×k points as equirectangular (u, v) at
-/// rotation 0 and their weights. A rotation about +Y only adds rotation/2π to u, so a rotation's sums
-/// need no trigonometry (`lookup_uv` at u + shift instead of `lookup` at a rotated direction).
+/// Where the base part is read for each direction-set texel: k×k points as equirectangular (u, v)
+/// at rotation 0 and their weights. A rotation about +Y only adds rotation/2π to u, so a rotation's
+/// sums need no trigonometry (`lookup_uv` at u + shift instead of `lookup` at a rotated direction).
 struct BaseSamples {
     resolution: usize,
     k: usize,
@@ -69,7 +75,13 @@ struct BaseSamples {
 
 impl std::fmt::Debug for BaseSamples {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "BaseSamples {{ resolution: {}, k: {}, points: {} }}", self.resolution, self.k, self.points.len())
+        write!(
+            f,
+            "BaseSamples {{ resolution: {}, k: {}, points: {} }}",
+            self.resolution,
+            self.k,
+            self.points.len()
+        )
     }
 }
 
@@ -84,7 +96,11 @@ impl BaseSamples {
                 })
             })
             .collect();
-        Self { resolution: set.resolution(), k, points }
+        Self {
+            resolution: set.resolution(),
+            k,
+            points,
+        }
     }
 }
 
@@ -97,14 +113,21 @@ impl LightSource {
         let mean = env.stats().mean_radiance;
         let tau = [16.0 * mean[0], 16.0 * mean[1], 16.0 * mean[2]];
         let (w, h) = (env.width(), env.height());
-        let base_texels: Vec<[f32; 3]> = env.texels().iter().map(|l| std::array::from_fn(|c| l[c].min(tau[c] as f32))).collect();
-        let base = EnvMap::from_rgb(w, h, base_texels, env.source()).unwrap_or_else(|_| env.clone());
+        let base_texels: Vec<[f32; 3]> = env
+            .texels()
+            .iter()
+            .map(|l| std::array::from_fn(|c| l[c].min(tau[c] as f32)))
+            .collect();
+        let base =
+            EnvMap::from_rgb(w, h, base_texels, env.source()).unwrap_or_else(|_| env.clone());
         let m = EXCESS_SUBSAMPLES;
         let dphi = 2.0 * std::f64::consts::PI / (w * m) as f64;
         let mut excess = Vec::new();
         for row in 0..h {
             for col in 0..w {
-                let Some(l) = env.texel(col, row) else { continue };
+                let Some(l) = env.texel(col, row) else {
+                    continue;
+                };
                 let over: [f64; 3] = std::array::from_fn(|c| (l[c] as f64 - tau[c]).max(0.0));
                 if over == [0.0; 3] {
                     continue;
@@ -112,7 +135,8 @@ impl LightSource {
                 for sub_row in 0..m {
                     let v0 = (row as f64 + sub_row as f64 / m as f64) / h as f64;
                     let v1 = (row as f64 + (sub_row + 1) as f64 / m as f64) / h as f64;
-                    let sub_omega = dphi * ((std::f64::consts::PI * v0).cos() - (std::f64::consts::PI * v1).cos());
+                    let sub_omega = dphi
+                        * ((std::f64::consts::PI * v0).cos() - (std::f64::consts::PI * v1).cos());
                     for sub_col in 0..m {
                         let u = (col as f64 + (sub_col as f64 + 0.5) / m as f64) / w as f64;
                         let d = crate::env::uv_to_direction(u, 0.5 * (v0 + v1));
@@ -121,7 +145,12 @@ impl LightSource {
                 }
             }
         }
-        Self { base, excess, env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64, samples: std::sync::Mutex::new(None) }
+        Self {
+            base,
+            excess,
+            env_texel_angle: 2.0 * std::f64::consts::PI / w.max(1) as f64,
+            samples: std::sync::Mutex::new(None),
+        }
     }
 
     /// Number of excess sub-samples (texels above τ × 16).
@@ -133,21 +162,30 @@ impl LightSource {
 /// Mean radiance of every texel of `set` (texel order) under `env` rotated by `rotation_rad`.
 ///
 /// The base part is integrated over each direction-set texel by a k×k grid of bilinear lookups
-/// weighted by the exact cube-face Jacobian (k ≈ the texel's width in environment texels): a uniform
-/// environment gives exactly its value in every texel (the white furnace) and smooth maps alias no
-/// more than bilinear filtering does. The excess is binned as power into the texel that contains each
-/// rotated sub-sample and divided by the texel's exact solid angle, so a sun's energy is conserved
-/// exactly and lands where it belongs. (Ratio-binning everything alias-noised smooth regions by ~1 %;
-/// power-binning everything put that noise on the furnace.)
+/// weighted by the exact cube-face Jacobian (k ≈ the texel's width in environment texels): a
+/// uniform environment gives exactly its value in every texel (the white furnace) and smooth maps
+/// alias no more than bilinear filtering does. The excess is binned as power into the texel that
+/// contains each rotated sub-sample and divided by the texel's exact solid angle, so a sun's energy
+/// is conserved exactly and lands where it belongs. (Ratio-binning everything alias-noised smooth
+/// regions by ~1 %; power-binning everything put that noise on the furnace.)
 pub fn texel_radiance(env: &EnvMap, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
     texel_radiance_from(&LightSource::new(env), set, rotation_rad)
 }
 
 /// [`texel_radiance`] from a prepared [`LightSource`] (what a rotation slider calls).
-pub fn texel_radiance_from(source: &LightSource, set: &DirectionSet, rotation_rad: f64) -> Vec<[f64; 3]> {
+pub fn texel_radiance_from(
+    source: &LightSource,
+    set: &DirectionSet,
+    rotation_rad: f64,
+) -> Vec<[f64; 3]> {
     let k = ((set.texel_angle() / source.env_texel_angle).ceil() as usize).clamp(1, 8);
     // The sample points of the last set asked for are kept: a rotation slider asks for one set.
-    let kept = source.samples.lock().ok().and_then(|s| s.clone()).filter(|s| s.resolution == set.resolution() && s.k == k);
+    let kept = source
+        .samples
+        .lock()
+        .ok()
+        .and_then(|s| s.clone())
+        .filter(|s| s.resolution == set.resolution() && s.k == k);
     let samples = kept.unwrap_or_else(|| {
         let made = std::sync::Arc::new(BaseSamples::new(set, k));
         if let Ok(mut slot) = source.samples.lock() {
@@ -188,14 +226,27 @@ impl LightSums {
     }
 
     /// From a prepared [`LightSource`]: what a rotation slider calls on every move.
-    pub fn from_source(source: &LightSource, set: &DirectionSet, tree: &LightTree, rotation_rad: f64) -> Self {
+    pub fn from_source(
+        source: &LightSource,
+        set: &DirectionSet,
+        tree: &LightTree,
+        rotation_rad: f64,
+    ) -> Self {
         let per_texel = texel_radiance_from(source, set, rotation_rad);
-        let leaf_radiance: Vec<[f64; 3]> = tree.leaf_texels().iter().map(|&t| per_texel[t as usize]).collect();
+        let leaf_radiance: Vec<[f64; 3]> = tree
+            .leaf_texels()
+            .iter()
+            .map(|&t| per_texel[t as usize])
+            .collect();
         Self::from_leaf_radiance(tree, leaf_radiance, rotation_rad)
     }
 
     /// From per-leaf radiance already in tree order.
-    pub fn from_leaf_radiance(tree: &LightTree, leaf_radiance: Vec<[f64; 3]>, rotation_rad: f64) -> Self {
+    pub fn from_leaf_radiance(
+        tree: &LightTree,
+        leaf_radiance: Vec<[f64; 3]>,
+        rotation_rad: f64,
+    ) -> Self {
         let n = leaf_radiance.len();
         let mut prefix_power = Vec::with_capacity(n + 1);
         let mut prefix_omega = Vec::with_capacity(n + 1);
@@ -220,7 +271,14 @@ impl LightSums {
             prefix_moment.push(m);
             prefix_radiant_moment.push(rm);
         }
-        Self { rotation_rad, leaf_radiance, prefix_power, prefix_omega, prefix_moment, prefix_radiant_moment }
+        Self {
+            rotation_rad,
+            leaf_radiance,
+            prefix_power,
+            prefix_omega,
+            prefix_moment,
+            prefix_radiant_moment,
+        }
     }
 
     /// The rotation these sums were made for.
@@ -255,42 +313,61 @@ impl LightSums {
     /// Per channel Σ L_l ∫_l ω dω over leaves [a, b): the radiance-weighted moment.
     #[inline]
     pub fn radiant_moment(&self, a: usize, b: usize) -> [DVec3; 3] {
-        let (pa, pb) = (&self.prefix_radiant_moment[a], &self.prefix_radiant_moment[b]);
+        let (pa, pb) = (
+            &self.prefix_radiant_moment[a],
+            &self.prefix_radiant_moment[b],
+        );
         [pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]]
     }
 
     /// Per channel ∫ L max(ω·n, 0) dω over leaves [a, z) of tree node k's subtree: split by the
-    /// horizon of n by a walk down the tree ([`LightTree::split_by_horizon`]), the sub-ranges wholly
-    /// above by their radiant moments (exact up to per-leaf constant radiance; `moment` is [a, z)'s
-    /// own, already read), the nodes of ≤ `coarse_leaves` leaves astride it clipped at their mean
-    /// radiance. Shared by the transfer and the PRT renderer.
-    pub fn clipped_cosine_power(&self, tree: &LightTree, k: usize, a: usize, z: usize, n: DVec3, coarse_leaves: u32, moment: &[DVec3; 3]) -> [f64; 3] {
+    /// horizon of n by a walk down the tree ([`LightTree::split_by_horizon`]), the sub-ranges
+    /// wholly above by their radiant moments (exact up to per-leaf constant radiance; `moment` is
+    /// [a, z)'s own, already read), the nodes of ≤ `coarse_leaves` leaves astride it clipped at
+    /// their mean radiance. Shared by the transfer and the PRT renderer.
+    pub fn clipped_cosine_power(
+        &self,
+        tree: &LightTree,
+        k: usize,
+        a: usize,
+        z: usize,
+        n: DVec3,
+        coarse_leaves: u32,
+        moment: &[DVec3; 3],
+    ) -> [f64; 3] {
         let mut cos_power = [0.0f64; 3];
-        tree.split_by_horizon(k, a, z, n, coarse_leaves, &mut |lo, hi, clipped| match clipped {
-            None => {
-                let own;
-                let m = if (lo, hi) == (a, z) {
-                    moment
-                } else {
-                    own = self.radiant_moment(lo, hi);
-                    &own
-                };
-                for c in 0..3 {
-                    cos_power[c] += m[c].dot(n).max(0.0);
+        tree.split_by_horizon(
+            k,
+            a,
+            z,
+            n,
+            coarse_leaves,
+            &mut |lo, hi, clipped| match clipped {
+                None => {
+                    let own;
+                    let m = if (lo, hi) == (a, z) {
+                        moment
+                    } else {
+                        own = self.radiant_moment(lo, hi);
+                        &own
+                    };
+                    for c in 0..3 {
+                        cos_power[c] += m[c].dot(n).max(0.0);
+                    }
                 }
-            }
-            Some(ci) if hi == lo + 1 => {
-                let l = self.leaf_radiance[lo];
-                for c in 0..3 {
-                    cos_power[c] += l[c] * ci;
+                Some(ci) if hi == lo + 1 => {
+                    let l = self.leaf_radiance[lo];
+                    for c in 0..3 {
+                        cos_power[c] += l[c] * ci;
+                    }
                 }
-            }
-            Some(ci) => {
-                for (p, l) in cos_power.iter_mut().zip(self.mean_radiance_of(lo, hi)) {
-                    *p += l * ci;
+                Some(ci) => {
+                    for (p, l) in cos_power.iter_mut().zip(self.mean_radiance_of(lo, hi)) {
+                        *p += l * ci;
+                    }
                 }
-            }
-        });
+            },
+        );
         cos_power
     }
 
@@ -298,7 +375,11 @@ impl LightSums {
     #[inline]
     pub fn mean_radiance_of(&self, a: usize, b: usize) -> [f64; 3] {
         let (power, omega) = (self.power(a, b), self.omega(a, b));
-        if omega > 0.0 { power.map(|p| p / omega) } else { [0.0; 3] }
+        if omega > 0.0 {
+            power.map(|p| p / omega)
+        } else {
+            [0.0; 3]
+        }
     }
 
     /// |C_k| L_k: the node's radiant power per unit area (Σ over its leaves of Ω L).
@@ -334,7 +415,11 @@ mod tests {
         let sums = LightSums::new(&env, &set, &tree, 0.7);
         for node in tree.nodes() {
             let l = sums.node_radiance(node);
-            assert!((l[0] - 1.0).abs() < 1e-12 && (l[1] - 2.0).abs() < 1e-12 && (l[2] - 3.0).abs() < 1e-12);
+            assert!(
+                (l[0] - 1.0).abs() < 1e-12
+                    && (l[1] - 2.0).abs() < 1e-12
+                    && (l[2] - 3.0).abs() < 1e-12
+            );
         }
         let total = sums.power(0, tree.leaf_count());
         assert!((total[0] - 4.0 * std::f64::consts::PI).abs() < 1e-10);
@@ -342,9 +427,17 @@ mod tests {
 
     #[test]
     fn a_rotation_as_a_shift_in_u_equals_reading_rotated_directions() {
-        // The kept sample points read at u + θ/2π against each texel's samples read at their direction
-        // rotated by −θ (trigonometry, no cache), for the set the source keeps and for another one.
-        let env = EnvMap::from_fn(128, 64, |d| [(1.0 + d.x + 0.5 * d.y * d.z) as f32, (1.5 + (3.0 * d.x).sin()) as f32, (2.0 + d.z) as f32]).unwrap();
+        // The kept sample points read at u + θ/2π against each texel's samples read at their
+        // direction rotated by −θ (trigonometry, no cache), for the set the source keeps and for
+        // another one.
+        let env = EnvMap::from_fn(128, 64, |d| {
+            [
+                (1.0 + d.x + 0.5 * d.y * d.z) as f32,
+                (1.5 + (3.0 * d.x).sin()) as f32,
+                (2.0 + d.z) as f32,
+            ]
+        })
+        .unwrap();
         let source = LightSource::new(&env);
         for resolution in [16, 12, 16] {
             let set = DirectionSet::cube(resolution).unwrap();
@@ -360,7 +453,11 @@ mod tests {
                         }
                     }
                     for c in 0..3 {
-                        assert!((got[t][c] - want[c]).abs() <= 1e-9 * want[c].abs().max(1.0), "n {resolution}, θ {rotation}, texel {t}: {:?} vs {want:?}", got[t]);
+                        assert!(
+                            (got[t][c] - want[c]).abs() <= 1e-9 * want[c].abs().max(1.0),
+                            "n {resolution}, θ {rotation}, texel {t}: {:?} vs {want:?}",
+                            got[t]
+                        );
                     }
                 }
             }
@@ -369,10 +466,13 @@ mod tests {
 
     #[test]
     fn texel_integrals_match_the_environment_mean() {
-        // Energy is preserved: the solid-angle-weighted mean of the texel integrals equals the map's own
-        // solid-angle-weighted mean (an independent sum over the equirectangular texels), for a smooth
-        // map and for a map with a one-texel sun.
-        let smooth = EnvMap::from_fn(256, 128, |d| [(1.0 + d.x + 0.5 * d.y) as f32, 1.0, (2.0 + d.z) as f32]).unwrap();
+        // Energy is preserved: the solid-angle-weighted mean of the texel integrals equals the
+        // map's own solid-angle-weighted mean (an independent sum over the equirectangular texels),
+        // for a smooth map and for a map with a one-texel sun.
+        let smooth = EnvMap::from_fn(256, 128, |d| {
+            [(1.0 + d.x + 0.5 * d.y) as f32, 1.0, (2.0 + d.z) as f32]
+        })
+        .unwrap();
         let mut texels = vec![[0.01f32; 3]; 256 * 128];
         texels[40 * 256 + 77] = [5e4; 3];
         let sun = EnvMap::from_rgb(256, 128, texels, "sun").unwrap();
@@ -385,7 +485,13 @@ mod tests {
             for c in 0..3 {
                 let rel = ((got[c] - want[c]) / want[c]).abs();
                 println!("{} c={c}: relative energy error {rel:.2e}", env.source());
-                assert!(rel < 5e-3, "{} c={c}: {} vs {}", env.source(), got[c], want[c]);
+                assert!(
+                    rel < 5e-3,
+                    "{} c={c}: {} vs {}",
+                    env.source(),
+                    got[c],
+                    want[c]
+                );
             }
         }
     }

@@ -1,9 +1,9 @@
-//! Atomic file writes: write to `.<name>.<pid>.<n>.tmp` beside the destination, flush and sync, then
-//! rename over the destination (atomic on POSIX within one filesystem). On any error the temporary
-//! file is removed and the destination is untouched.
+//! Atomic file writes: write to `.<name>.<pid>.<n>.tmp` beside the destination, flush and sync,
+//! then rename over the destination (atomic on POSIX within one filesystem). On any error the
+//! temporary file is removed and the destination is untouched.
 //!
-//! Inputs: a destination path and the bytes (or a writer callback). Output: the file, complete, or an
-//! error naming the path and the cause. Invariant: a reader never sees a partial file at `path`.
+//! Inputs: a destination path and the bytes (or a writer callback). Output: the file, complete, or
+//! an error naming the path and the cause. Invariant: a reader never sees a partial file at `path`.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -15,7 +15,10 @@ pub enum AtomicWriteError {
     #[error("cannot write {path}: the destination has no file name")]
     NoFileName { path: PathBuf },
     #[error("cannot write {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -30,14 +33,26 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), AtomicWriteError> {
-    let name = path.file_name().ok_or_else(|| AtomicWriteError::NoFileName { path: path.to_path_buf() })?;
+    let name = path
+        .file_name()
+        .ok_or_else(|| AtomicWriteError::NoFileName {
+            path: path.to_path_buf(),
+        })?;
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = dir.join(format!(".{}.{}.{}.tmp", name.to_string_lossy(), std::process::id(), n));
-    let io = |source| AtomicWriteError::Io { path: path.to_path_buf(), source };
+    let tmp = dir.join(format!(
+        ".{}.{}.{}.tmp",
+        name.to_string_lossy(),
+        std::process::id(),
+        n
+    ));
+    let io = |source| AtomicWriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
         let mut writer = std::io::BufWriter::new(file);
@@ -73,7 +88,11 @@ mod tests {
         });
         assert!(err.is_err());
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
-        let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name() != "out.bin").collect();
+        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name() != "out.bin")
+            .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
         // A destination in a missing folder: an error naming it.
         let missing = dir.join("no/such/dir/x.bin");

@@ -2,14 +2,14 @@
 //! I0e(x) = e^(-|x|) I0(x).
 //!
 //! It appears in the azimuthal average of a Gaussian lobe (the isotropic "ring" lobe): averaging
-//! exp(2λ(h·ξ - 1)) over the azimuth of ξ gives exp(2λ(cos(θh - θξ) - 1)) · I0e(2λ sin θh sin θξ), a form
-//! that cannot overflow for any λ. Inputs: any finite x. Output: a value in (0, 1], with relative
-//! error below 1e-14 (power series below 30, asymptotic series above: both converge to full
-//! precision there).
+//! exp(2λ(h·ξ - 1)) over the azimuth of ξ gives exp(2λ(cos(θh - θξ) - 1)) · I0e(2λ sin θh sin θξ),
+//! a form that cannot overflow for any λ. Inputs: any finite x. Output: a value in (0, 1], with
+//! relative error below 1e-14 (power series below 30, asymptotic series above: both converge to
+//! full precision there).
 //!
 //! Defined here, in the file-format crate, because its reference evaluator of the exported BRDF
-//! ([`crate::brdf`]) needs it and this crate cannot depend on `glint`; glint's `math` module re-exports it and
-//! tests it against the integral representation.
+//! ([`crate::brdf`]) needs it and this crate cannot depend on `glint`; glint's `math` module
+//! re-exports it and tests it against the integral representation.
 
 /// e^(-|x|) I0(x).
 pub fn bessel_i0e(x: f64) -> f64 {

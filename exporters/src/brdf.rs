@@ -1,15 +1,14 @@
 //! Reference evaluators of the exported BRDF, for readers' tests and the table-accuracy study.
 //!
 //! f_r(wi, wo) = ρd/π + p(h)·s(wi, wo), without the cosine, in the local frame (z = normal, x =
-//! tangent); h = normalize(wi + wo); s = F(wi·h) / (4 (k1 + k2 − k1·k2)), k1 = wi·n, k2 = wo·n,
-//! F = f0 + (1 − f0)(1 − wi·h)^5. [`eval_from_table`] reads p(h) from the description's table (what a
-//! renderer does with the EXR); [`eval_lobes`] sums the lobes exactly: point lobes
-//! p(h) = Σ_j c_j exp(2λ(h·ξ_j − 1)) for anisotropic layouts, ring lobes
-//! p(h) = Σ_j c_j exp(2λ(cos(θh − θj) − 1)) I0e(2λ sin θh sin θj) for isotropic ones
-//! (docs/conventions.md §1).
+//! tangent); h = normalize(wi + wo); s = F(wi·h) / (4 (k1 + k2 − k1·k2)), k1 = wi·n, k2 = wo·n, F =
+//! f0 + (1 − f0)(1 − wi·h)^5. [`eval_from_table`] reads p(h) from the description's table (what a
+//! renderer does with the EXR); [`eval_lobes`] sums the lobes exactly: point lobes p(h) = Σ_j c_j
+//! exp(2λ(h·ξ_j − 1)) for anisotropic layouts, ring lobes p(h) = Σ_j c_j exp(2λ(cos(θh − θj) − 1))
+//! I0e(2λ sin θh sin θj) for isotropic ones (docs/conventions.md §1).
 //!
-//! Inputs: a [`MaterialDesc`] and two local unit directions. Outputs: RGB f_r.
-//! Invariants: 0 when either direction is at or below the horizon (or degenerate); no IO, no panics.
+//! Inputs: a [`MaterialDesc`] and two local unit directions. Outputs: RGB f_r. Invariants: 0 when
+//! either direction is at or below the horizon (or degenerate); no IO, no panics.
 
 use crate::bessel::bessel_i0e;
 use crate::material::MaterialDesc;

@@ -97,28 +97,61 @@ pub fn encode_ph_exr(desc: &MaterialDesc) -> Result<Vec<u8>, ExportError> {
     h.text("glint.model", &desc.model);
     h.text("glint.name", &desc.name);
     h.text("glint.layout", &desc.layout);
-    h.add("glint.version", "int", (desc.version.min(i32::MAX as u32) as i32).to_le_bytes().to_vec());
+    h.add(
+        "glint.version",
+        "int",
+        (desc.version.min(i32::MAX as u32) as i32)
+            .to_le_bytes()
+            .to_vec(),
+    );
     h.double("glint.lambda", desc.lambda);
     h.double("glint.sigma", desc.sigma);
     h.double("glint.f0", desc.f0);
-    h.add("glint.rho_d", "v3d", desc.rho_d.iter().flat_map(|v| v.to_le_bytes()).collect());
-    // The same scalars as plain attributes, for readers that drop vector types (Mitsuba's EXR reader).
+    h.add(
+        "glint.rho_d",
+        "v3d",
+        desc.rho_d.iter().flat_map(|v| v.to_le_bytes()).collect(),
+    );
+    // The same scalars as plain attributes, for readers that drop vector types (Mitsuba's EXR
+    // reader).
     for (k, channel) in ["r", "g", "b"].iter().enumerate() {
-        h.add(&format!("glint.rho_d_{channel}"), "float", (desc.rho_d[k] as f32).to_le_bytes().to_vec());
+        h.add(
+            &format!("glint.rho_d_{channel}"),
+            "float",
+            (desc.rho_d[k] as f32).to_le_bytes().to_vec(),
+        );
     }
-    h.add("glint.isotropic", "int", i32::from(desc.isotropic).to_le_bytes().to_vec());
-    h.add("glint.lobe_count", "int", (desc.centres.len().min(i32::MAX as usize) as i32).to_le_bytes().to_vec());
+    h.add(
+        "glint.isotropic",
+        "int",
+        i32::from(desc.isotropic).to_le_bytes().to_vec(),
+    );
+    h.add(
+        "glint.lobe_count",
+        "int",
+        (desc.centres.len().min(i32::MAX as usize) as i32)
+            .to_le_bytes()
+            .to_vec(),
+    );
     h.text("glint.conventions", CONVENTIONS_DOC);
     h.text("glint.parameterisation", PARAMETERISATION_FORMULA); // starts with the name, "hemi-octahedral:"
     h.text("glint.frame_convention", &desc.frame_convention);
     h.text("glint.brdf_convention", &desc.brdf_convention);
-    h.text("glint.provenance", &json_ascii(&serde_json::json!(desc.provenance)));
+    h.text(
+        "glint.provenance",
+        &json_ascii(&serde_json::json!(desc.provenance)),
+    );
     Ok(encode_rgb_exr(r, r, &desc.table.texels, h))
 }
 
 /// An RGB 32-bit float image as uncompressed scan-line OpenEXR, with the given extra attributes
 /// (`width`, `height` ≥ 1; `texels` row-major, `width × height`, row 0 the first scan line).
-pub(crate) fn encode_rgb_exr(width: usize, height: usize, texels: &[[f32; 3]], mut h: Header) -> Vec<u8> {
+pub(crate) fn encode_rgb_exr(
+    width: usize,
+    height: usize,
+    texels: &[[f32; 3]],
+    mut h: Header,
+) -> Vec<u8> {
     // Required attributes.
     let mut chlist = Vec::new();
     for ch in [b'B', b'G', b'R'] {
@@ -139,7 +172,11 @@ pub(crate) fn encode_rgb_exr(width: usize, height: usize, texels: &[[f32; 3]], m
     h.add("displayWindow", "box2i", window);
     h.add("lineOrder", "lineOrder", vec![0]);
     h.add("pixelAspectRatio", "float", 1f32.to_le_bytes().to_vec());
-    h.add("screenWindowCenter", "v2f", [0f32.to_le_bytes(), 0f32.to_le_bytes()].concat());
+    h.add(
+        "screenWindowCenter",
+        "v2f",
+        [0f32.to_le_bytes(), 0f32.to_le_bytes()].concat(),
+    );
     h.add("screenWindowWidth", "float", 1f32.to_le_bytes().to_vec());
     h.attrs.sort_by(|a, b| a.0.cmp(&b.0));
 
@@ -186,26 +223,44 @@ impl Exporter for ExrExporter {
     fn extensions(&self) -> &'static [&'static str] {
         &["exr"]
     }
-    fn build(&self, desc: &MaterialDesc, _scene: Option<&SceneMesh>, dir: &Path) -> Result<Vec<OutputFile>, ExportError> {
-        Ok(vec![OutputFile { path: dir.join(ph_exr_file_name(&desc.name)), bytes: encode_ph_exr(desc)? }])
+    fn build(
+        &self,
+        desc: &MaterialDesc,
+        _scene: Option<&SceneMesh>,
+        dir: &Path,
+    ) -> Result<Vec<OutputFile>, ExportError> {
+        Ok(vec![OutputFile {
+            path: dir.join(ph_exr_file_name(&desc.name)),
+            bytes: encode_ph_exr(desc)?,
+        }])
     }
 }
 
 fn exr_error(path: &Path, reason: impl std::fmt::Display) -> ExportError {
-    ExportError::Exr { path: path.to_path_buf(), reason: reason.to_string().replace(['\n', '\r'], " ") }
+    ExportError::Exr {
+        path: path.to_path_buf(),
+        reason: reason.to_string().replace(['\n', '\r'], " "),
+    }
 }
 
-fn read_with_attributes(path: &Path) -> Result<(PhTable, BTreeMap<String, AttrValue>), ExportError> {
+fn read_with_attributes(
+    path: &Path,
+) -> Result<(PhTable, BTreeMap<String, AttrValue>), ExportError> {
     use exr::prelude::*;
     if !path.is_file() {
-        return Err(ExportError::Read { path: path.to_path_buf(), source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file") });
+        return Err(ExportError::Read {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
     }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .rgb_channels(
             |size, _| (size.width(), vec![[0f32; 3]; size.width() * size.height()]),
-            |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b): (f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
+            |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b): (f32, f32, f32)| {
+                px[pos.y() * *w + pos.x()] = [r, g, b]
+            },
         )
         .first_valid_layer()
         .all_attributes()
@@ -218,29 +273,50 @@ fn read_with_attributes(path: &Path) -> Result<(PhTable, BTreeMap<String, AttrVa
     }
     let texels = layer.channel_data.pixels.1.clone();
     let mut attrs = BTreeMap::new();
-    for (name, value) in layer.attributes.other.iter().chain(image.attributes.other.iter()) {
+    for (name, value) in layer
+        .attributes
+        .other
+        .iter()
+        .chain(image.attributes.other.iter())
+    {
         let name = name.to_string();
         if !name.starts_with("glint.") {
             continue;
         }
         let v = match value {
-            AttributeValue::Text(t) => AttrValue::Text(String::from_utf8_lossy(t.bytes()).into_owned()),
+            AttributeValue::Text(t) => {
+                AttrValue::Text(String::from_utf8_lossy(t.bytes()).into_owned())
+            }
             AttributeValue::I32(i) => AttrValue::Int(*i),
             AttributeValue::F64(d) => AttrValue::Double(*d),
             AttributeValue::F32(f) => AttrValue::Float(*f),
-            AttributeValue::Custom { kind, bytes } if kind.bytes() == b"v3d" && bytes.len() == 24 => {
-                let d = |i: usize| f64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().unwrap_or([0; 8]));
+            AttributeValue::Custom { kind, bytes }
+                if kind.bytes() == b"v3d" && bytes.len() == 24 =>
+            {
+                let d = |i: usize| {
+                    f64::from_le_bytes(bytes[8 * i..8 * i + 8].try_into().unwrap_or([0; 8]))
+                };
                 AttrValue::Vec3([d(0), d(1), d(2)])
             }
-            AttributeValue::Custom { kind, .. } | AttributeValue::Bytes { type_hint: kind, .. } => AttrValue::Other(kind.to_string()),
+            AttributeValue::Custom { kind, .. }
+            | AttributeValue::Bytes {
+                type_hint: kind, ..
+            } => AttrValue::Other(kind.to_string()),
             other => AttrValue::Other(format!("{other:?}").chars().take(40).collect()),
         };
         attrs.insert(name, v);
     }
-    Ok((PhTable { resolution: w as u32, texels }, attrs))
+    Ok((
+        PhTable {
+            resolution: w as u32,
+            texels,
+        },
+        attrs,
+    ))
 }
 
-/// Reads a p(h) table (any EXR with R, G, B channels and a square data window) with the `exr` crate.
+/// Reads a p(h) table (any EXR with R, G, B channels and a square data window) with the `exr`
+/// crate.
 pub fn read_ph_exr(path: &Path) -> Result<PhTable, ExportError> {
     read_with_attributes(path).map(|(t, _)| t)
 }

@@ -1,12 +1,12 @@
 //! glTF 2.0 binary (`<name>.glb`): the material on the caller's mesh, or on a preview sphere.
 //!
 //! Inputs: a validated [`MaterialDesc`] and an optional [`SceneMesh`]. Outputs: the GLB bytes
-//! ([`encode_glb`]) and the exporter ([`GltfExporter`]), which also writes the `<name>_ph.exr` table the
-//! GLB points at. The material is `pbrMetallicRoughness` from the fallback (baseColorFactor,
-//! metallicFactor, roughnessFactor), plus `KHR_materials_anisotropy` (in `extensionsUsed`, not
-//! required) only when the fallback is anisotropic; `material.extras.glint` carries the whole lobe
-//! table (f64, shortest round-trip), the provenance, and the table's relative URI and
-//! parameterisation.
+//! ([`encode_glb`]) and the exporter ([`GltfExporter`]), which also writes the `<name>_ph.exr`
+//! table the GLB points at. The material is `pbrMetallicRoughness` from the fallback
+//! (baseColorFactor, metallicFactor, roughnessFactor), plus `KHR_materials_anisotropy` (in
+//! `extensionsUsed`, not required) only when the fallback is anisotropic; `material.extras.glint`
+//! carries the whole lobe table (f64, shortest round-trip), the provenance, and the table's
+//! relative URI and parameterisation.
 //!
 //! The preview sphere carries positions and normals, plus tangents when the material is anisotropic
 //! (`KHR_materials_anisotropy` needs them); a caller's mesh keeps its tangents and UVs.
@@ -14,13 +14,14 @@
 //! When the scene carries a camera (the view glint renders, docs/conventions.md §4), it is a second
 //! node with a perspective camera (yfov, aspect ratio W/H, near and far planes) and a rigid matrix.
 //!
-//! Invariants: one scene, one mesh node (and a camera node when given), one mesh, one primitive (triangles, u32 indices), one material;
-//! POSITION has exact min/max; normals and tangents are unit (the mesh is validated and normalised);
-//! each attribute has its own 4-byte-aligned buffer view with a target; JSON keys come from
-//! `serde_json`'s ordered map, so equal inputs give equal bytes. Khronos glTF-Validator (2.0.0-dev.3.10)
-//! reports no error, warning or hint, and no info for the isotropic preview; its only infos are
-//! UNUSED_MESH_TANGENT when anisotropic (it counts tangents as used only with a normal texture, not
-//! for anisotropy) and UNUSED_OBJECT for a caller's TEXCOORD_0 (the material has no texture) — tested.
+//! Invariants: one scene, one mesh node (and a camera node when given), one mesh, one primitive
+//! (triangles, u32 indices), one material; POSITION has exact min/max; normals and tangents are
+//! unit (the mesh is validated and normalised); each attribute has its own 4-byte-aligned buffer
+//! view with a target; JSON keys come from `serde_json`'s ordered map, so equal inputs give equal
+//! bytes. Khronos glTF-Validator (2.0.0-dev.3.10) reports no error, warning or hint, and no info
+//! for the isotropic preview; its only infos are UNUSED_MESH_TANGENT when anisotropic (it counts
+//! tangents as used only with a normal texture, not for anisotropy) and UNUSED_OBJECT for a
+//! caller's TEXCOORD_0 (the material has no texture) — tested.
 
 use crate::error::ExportError;
 use crate::exporter::{Exporter, OutputFile};
@@ -43,7 +44,8 @@ struct Bin {
 }
 
 impl Bin {
-    /// Appends one tightly packed attribute (f32 components) or the u32 indices; returns the accessor.
+    /// Appends one tightly packed attribute (f32 components) or the u32 indices; returns the
+    /// accessor.
     fn push(&mut self, data: &[u8], target: u32, accessor: Value) -> usize {
         while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
@@ -58,7 +60,11 @@ impl Bin {
     }
 
     fn floats<const N: usize>(&mut self, items: &[[f32; N]], kind: &str, bounds: bool) -> usize {
-        let data: Vec<u8> = items.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let data: Vec<u8> = items
+            .iter()
+            .flatten()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
         let mut a = json!({ "componentType": FLOAT, "count": items.len(), "type": kind });
         if bounds {
             let mut lo = [f32::INFINITY; N];
@@ -110,7 +116,8 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
     let mesh: CleanMesh = match scene {
         Some(s) => s.validated()?,
         None => {
-            // Only what the material uses, so validators find nothing unused: tangents for anisotropy.
+            // Only what the material uses, so validators find nothing unused: tangents for
+            // anisotropy.
             let mut sphere = preview_sphere();
             sphere.uvs = None;
             if desc.fallback.anisotropy.is_none() {
@@ -119,10 +126,20 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
             sphere.validated()?
         }
     };
-    let mut bin = Bin { bytes: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut bin = Bin {
+        bytes: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
     let mut attributes = serde_json::Map::new();
-    attributes.insert("POSITION".into(), json!(bin.floats(&mesh.positions, "VEC3", true)));
-    attributes.insert("NORMAL".into(), json!(bin.floats(&mesh.normals, "VEC3", false)));
+    attributes.insert(
+        "POSITION".into(),
+        json!(bin.floats(&mesh.positions, "VEC3", true)),
+    );
+    attributes.insert(
+        "NORMAL".into(),
+        json!(bin.floats(&mesh.normals, "VEC3", false)),
+    );
     if let Some(t) = &mesh.tangents {
         attributes.insert("TANGENT".into(), json!(bin.floats(t, "VEC4", false)));
     }
@@ -130,12 +147,20 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
         attributes.insert("TEXCOORD_0".into(), json!(bin.floats(uv, "VEC2", false)));
     }
     let index_bytes: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
-    let indices = bin.push(&index_bytes, ELEMENT_ARRAY_BUFFER, json!({ "componentType": UNSIGNED_INT, "count": mesh.indices.len(), "type": "SCALAR" }));
+    let indices = bin.push(
+        &index_bytes,
+        ELEMENT_ARRAY_BUFFER,
+        json!({ "componentType": UNSIGNED_INT, "count": mesh.indices.len(), "type": "SCALAR" }),
+    );
     while !bin.bytes.len().is_multiple_of(4) {
         bin.bytes.push(0);
     }
     let (material, anisotropic) = material_json(desc);
-    let mesh_name = if scene.is_some() { desc.name.clone() } else { format!("{}_preview_sphere", desc.name) };
+    let mesh_name = if scene.is_some() {
+        desc.name.clone()
+    } else {
+        format!("{}_preview_sphere", desc.name)
+    };
     let mut root = json!({
         "asset": { "version": "2.0", "generator": concat!("glint-exporters ", env!("CARGO_PKG_VERSION")) },
         "scene": 0,
@@ -156,9 +181,13 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
         if let Some(far) = camera.zfar {
             perspective["zfar"] = json!(far);
         }
-        root["cameras"] = json!([{ "name": camera.name, "type": "perspective", "perspective": perspective }]);
+        root["cameras"] =
+            json!([{ "name": camera.name, "type": "perspective", "perspective": perspective }]);
         // Column-major camera-to-world: +X right, +Y up, +Z back (glTF cameras look down −Z).
-        let matrix = [r[0], r[1], r[2], 0.0, u[0], u[1], u[2], 0.0, -f[0], -f[1], -f[2], 0.0, e[0], e[1], e[2], 1.0];
+        let matrix = [
+            r[0], r[1], r[2], 0.0, u[0], u[1], u[2], 0.0, -f[0], -f[1], -f[2], 0.0, e[0], e[1],
+            e[2], 1.0,
+        ];
         if let Some(nodes) = root["nodes"].as_array_mut() {
             nodes.push(json!({ "name": camera.name, "camera": 0, "matrix": matrix }));
         }
@@ -174,7 +203,9 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
     }
     let total = 12 + 8 + text.len() + 8 + bin.bytes.len();
     if total > u32::MAX as usize {
-        return Err(ExportError::InvalidMesh { reason: format!("the GLB would be {total} bytes; GLB files are limited to 4 GiB") });
+        return Err(ExportError::InvalidMesh {
+            reason: format!("the GLB would be {total} bytes; GLB files are limited to 4 GiB"),
+        });
     }
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
@@ -200,11 +231,22 @@ impl Exporter for GltfExporter {
     fn extensions(&self) -> &'static [&'static str] {
         &["glb", "exr"]
     }
-    fn build(&self, desc: &MaterialDesc, scene: Option<&SceneMesh>, dir: &Path) -> Result<Vec<OutputFile>, ExportError> {
+    fn build(
+        &self,
+        desc: &MaterialDesc,
+        scene: Option<&SceneMesh>,
+        dir: &Path,
+    ) -> Result<Vec<OutputFile>, ExportError> {
         let glb = encode_glb(desc, scene)?;
         Ok(vec![
-            OutputFile { path: dir.join(format!("{}.glb", desc.name)), bytes: glb },
-            OutputFile { path: dir.join(ph_exr_file_name(&desc.name)), bytes: encode_ph_exr(desc)? },
+            OutputFile {
+                path: dir.join(format!("{}.glb", desc.name)),
+                bytes: glb,
+            },
+            OutputFile {
+                path: dir.join(ph_exr_file_name(&desc.name)),
+                bytes: encode_ph_exr(desc)?,
+            },
         ])
     }
 }

@@ -1,11 +1,12 @@
 //! The plain material description every exporter takes, and the scene mesh some of them embed.
 //!
-//! Inputs: data the caller fills (the fitted lobe table, the tabulated p(h), a PBR fallback, an optional
-//! MERL table, an optional triangle mesh). Outputs: the types, [`MaterialDesc::validate`] and
-//! [`SceneMesh::validate`], and [`MaterialDesc::lobe_table_json`] (the JSON object written into glTF
-//! extras, shaped like glint's material JSON). Invariants: no IO; validation rejects what would make a
-//! file invalid or a reader divide by zero (lengths, non-finite numbers, names that are not plain file
-//! names) before anything is written; maps are `BTreeMap`s so every output is byte-deterministic.
+//! Inputs: data the caller fills (the fitted lobe table, the tabulated p(h), a PBR fallback, an
+//! optional MERL table, an optional triangle mesh). Outputs: the types, [`MaterialDesc::validate`]
+//! and [`SceneMesh::validate`], and [`MaterialDesc::lobe_table_json`] (the JSON object written into
+//! glTF extras, shaped like glint's material JSON). Invariants: no IO; validation rejects what
+//! would make a file invalid or a reader divide by zero (lengths, non-finite numbers, names that
+//! are not plain file names) before anything is written; maps are `BTreeMap`s so every output is
+//! byte-deterministic.
 
 use crate::error::ExportError;
 use crate::merl::MerlTable;
@@ -30,7 +31,11 @@ pub const FRAME_CONVENTION: &str = "local frame: z = shading normal (the interpo
 
 /// The BRDF convention string for a layout.
 pub fn brdf_convention(isotropic: bool) -> &'static str {
-    if isotropic { BRDF_CONVENTION_ISOTROPIC } else { BRDF_CONVENTION_ANISOTROPIC }
+    if isotropic {
+        BRDF_CONVENTION_ISOTROPIC
+    } else {
+        BRDF_CONVENTION_ANISOTROPIC
+    }
 }
 
 /// A fitted material, as plain data.
@@ -75,7 +80,8 @@ pub struct PbrFallback {
     pub metallic: f64,
     /// Perceptual roughness in [0, 1].
     pub roughness: f64,
-    /// `(strength in [0, 1], rotation in radians)` for `KHR_materials_anisotropy`; `None`: isotropic.
+    /// `(strength in [0, 1], rotation in radians)` for `KHR_materials_anisotropy`; `None`:
+    /// isotropic.
     pub anisotropy: Option<(f64, f64)>,
     /// How far the fallback is from the fitted BRDF (reported in metadata, not used).
     pub relative_error: f64,
@@ -87,7 +93,9 @@ impl PbrFallback {
     pub fn summary(&self, isotropic: bool) -> String {
         let [r, g, b] = self.base_color;
         let anisotropy = match self.anisotropy {
-            Some((strength, rotation)) => format!("; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"),
+            Some((strength, rotation)) => format!(
+                "; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"
+            ),
             None if isotropic => String::new(),
             None => " (isotropic fallback: an anisotropic one fitted no better)".to_string(),
         };
@@ -100,13 +108,15 @@ impl PbrFallback {
     }
 }
 
-/// A triangle mesh to carry the material (positions in metres, Y up, counter-clockwise front faces).
+/// A triangle mesh to carry the material (positions in metres, Y up, counter-clockwise front
+/// faces).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SceneMesh {
     pub positions: Vec<[f32; 3]>,
     /// Per vertex; normalised on export (a zero or non-finite normal is an error).
     pub normals: Vec<[f32; 3]>,
-    /// Per vertex `(x, y, z, w)`, w = ±1 handedness; xyz normalised and w snapped to its sign on export.
+    /// Per vertex `(x, y, z, w)`, w = ±1 handedness; xyz normalised and w snapped to its sign on
+    /// export.
     pub tangents: Option<Vec<[f32; 4]>>,
     /// Per vertex TEXCOORD_0.
     pub uvs: Option<Vec<[f32; 2]>>,
@@ -130,7 +140,11 @@ impl MaterialDesc {
     }
 
     fn invalid(&self, field: &'static str, reason: impl Into<String>) -> ExportError {
-        ExportError::InvalidMaterial { material: self.name.clone(), field, reason: reason.into() }
+        ExportError::InvalidMaterial {
+            material: self.name.clone(),
+            field,
+            reason: reason.into(),
+        }
     }
 
     /// Checks everything an exporter relies on. Every exporter calls it before building any file.
@@ -142,10 +156,15 @@ impl MaterialDesc {
         }
         for (c, channel) in self.coefficients.iter().zip(["R", "G", "B"]) {
             if c.len() != j {
-                return Err(self.invalid("coefficients", format!("{channel} has {} values for J = {j} centres", c.len())));
+                return Err(self.invalid(
+                    "coefficients",
+                    format!("{channel} has {} values for J = {j} centres", c.len()),
+                ));
             }
             if !finite(c) {
-                return Err(self.invalid("coefficients", format!("{channel} has a non-finite value")));
+                return Err(
+                    self.invalid("coefficients", format!("{channel} has a non-finite value"))
+                );
             }
         }
         for (i, c) in self.centres.iter().enumerate() {
@@ -155,7 +174,10 @@ impl MaterialDesc {
             }
         }
         if !(self.lambda.is_finite() && self.lambda > 0.0) {
-            return Err(self.invalid("lambda", format!("must be finite and > 0, got {}", self.lambda)));
+            return Err(self.invalid(
+                "lambda",
+                format!("must be finite and > 0, got {}", self.lambda),
+            ));
         }
         if !self.sigma.is_finite() {
             return Err(self.invalid("sigma", "is not finite"));
@@ -173,24 +195,40 @@ impl MaterialDesc {
             return Err(self.invalid("fallback", "has a non-finite value"));
         }
         let unit = |x: f64| (0.0..=1.0).contains(&x);
-        if !fb.base_color.iter().all(|&c| unit(c)) || !unit(fb.metallic) || !unit(fb.roughness) || !fb.anisotropy.is_none_or(|(s, _)| unit(s)) {
+        if !fb.base_color.iter().all(|&c| unit(c))
+            || !unit(fb.metallic)
+            || !unit(fb.roughness)
+            || !fb.anisotropy.is_none_or(|(s, _)| unit(s))
+        {
             return Err(self.invalid("fallback", "base_color, metallic, roughness and anisotropy strength must lie in [0, 1] (glTF and UsdPreviewSurface ranges)"));
         }
-        for (label, s) in [("model", &self.model), ("layout", &self.layout), ("brdf_convention", &self.brdf_convention), ("frame_convention", &self.frame_convention)] {
+        for (label, s) in [
+            ("model", &self.model),
+            ("layout", &self.layout),
+            ("brdf_convention", &self.brdf_convention),
+            ("frame_convention", &self.frame_convention),
+        ] {
             if s.contains('\0') {
                 return Err(self.invalid("strings", format!("{label} contains a NUL byte")));
             }
         }
-        if self.provenance.iter().any(|(k, v)| k.contains('\0') || v.contains('\0')) {
+        if self
+            .provenance
+            .iter()
+            .any(|(k, v)| k.contains('\0') || v.contains('\0'))
+        {
             return Err(self.invalid("provenance", "contains a NUL byte"));
         }
-        self.table.validate().map_err(|reason| self.invalid("table", reason))?;
+        self.table
+            .validate()
+            .map_err(|reason| self.invalid("table", reason))?;
         Ok(())
     }
 
     /// The lobe table as JSON, with the field names of glint's material JSON (`lambda`, `sigma`,
-    /// `layout`, `centres`, `coefficients` as 3 × J, `rho_d`, `f0`, `frame`, `brdf_convention`), plus
-    /// `isotropic` and `provenance`. f64 numbers are written shortest-round-trip, so they are exact.
+    /// `layout`, `centres`, `coefficients` as 3 × J, `rho_d`, `f0`, `frame`, `brdf_convention`),
+    /// plus `isotropic` and `provenance`. f64 numbers are written shortest-round-trip, so they are
+    /// exact.
     pub fn lobe_table_json(&self) -> serde_json::Value {
         serde_json::json!({
             "model": self.model,
@@ -213,7 +251,12 @@ impl MaterialDesc {
 
 /// Checks that `name` is a plain, portable file-name stem.
 pub fn validate_name(name: &str) -> Result<(), ExportError> {
-    let bad = |reason| Err(ExportError::InvalidName { name: name.escape_debug().to_string(), reason });
+    let bad = |reason| {
+        Err(ExportError::InvalidName {
+            name: name.escape_debug().to_string(),
+            reason,
+        })
+    };
     if name.is_empty() {
         return bad("it is empty");
     }
@@ -223,7 +266,10 @@ pub fn validate_name(name: &str) -> Result<(), ExportError> {
     if name.starts_with('.') {
         return bad("it starts with '.'");
     }
-    if !name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.') {
+    if !name
+        .bytes()
+        .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
+    {
         return bad("only ASCII letters, digits, '.', '-' and '_' are allowed");
     }
     Ok(())
@@ -246,7 +292,10 @@ impl SceneMesh {
             return bad(format!("{n} vertices do not fit u32 indices"));
         }
         if !self.indices.len().is_multiple_of(3) {
-            return bad(format!("{} indices is not a multiple of 3", self.indices.len()));
+            return bad(format!(
+                "{} indices is not a multiple of 3",
+                self.indices.len()
+            ));
         }
         if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
             return bad(format!("index {i} is out of range for {n} vertices"));
@@ -266,12 +315,16 @@ impl SceneMesh {
         }
         let tangents = match &self.tangents {
             None => None,
-            Some(t) if t.len() != n => return bad(format!("{} tangents for {n} positions", t.len())),
+            Some(t) if t.len() != n => {
+                return bad(format!("{} tangents for {n} positions", t.len()));
+            }
             Some(t) => {
                 let mut out = Vec::with_capacity(n);
                 for (i, v) in t.iter().enumerate() {
                     match normalize_f32([v[0], v[1], v[2]]) {
-                        Some(u) if v[3].is_finite() => out.push([u[0], u[1], u[2], if v[3] < 0.0 { -1.0 } else { 1.0 }]),
+                        Some(u) if v[3].is_finite() => {
+                            out.push([u[0], u[1], u[2], if v[3] < 0.0 { -1.0 } else { 1.0 }])
+                        }
                         _ => return bad(format!("tangent {i} is zero or not finite")),
                     }
                 }
@@ -281,7 +334,9 @@ impl SceneMesh {
         let uvs = match &self.uvs {
             None => None,
             Some(t) if t.len() != n => return bad(format!("{} uvs for {n} positions", t.len())),
-            Some(t) if t.iter().flatten().any(|x| !x.is_finite()) => return bad("a uv is not finite".into()),
+            Some(t) if t.iter().flatten().any(|x| !x.is_finite()) => {
+                return bad("a uv is not finite".into());
+            }
             Some(t) => Some(t.clone()),
         };
         if let Some(c) = &self.camera {
@@ -290,7 +345,13 @@ impl SceneMesh {
         if let Some(e) = &self.environment {
             e.validate()?;
         }
-        Ok(CleanMesh { positions: self.positions.clone(), normals, tangents, uvs, indices: self.indices.clone() })
+        Ok(CleanMesh {
+            positions: self.positions.clone(),
+            normals,
+            tangents,
+            uvs,
+            indices: self.indices.clone(),
+        })
     }
 }
 
@@ -304,7 +365,8 @@ pub(crate) struct CleanMesh {
     pub indices: Vec<u32>,
 }
 
-/// Normalises in f64 and rounds to f32 (so |v| is 1 to f32 precision); `None` for zero or non-finite.
+/// Normalises in f64 and rounds to f32 (so |v| is 1 to f32 precision); `None` for zero or
+/// non-finite.
 fn normalize_f32(v: [f32; 3]) -> Option<[f32; 3]> {
     let d = [v[0] as f64, v[1] as f64, v[2] as f64];
     let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
@@ -331,7 +393,12 @@ mod tests {
 
     #[test]
     fn meshes_are_checked() {
-        let mut m = SceneMesh { positions: vec![[0.0; 3]; 3], normals: vec![[0.0, 0.0, 2.0]; 3], indices: vec![0, 1, 2], ..Default::default() };
+        let mut m = SceneMesh {
+            positions: vec![[0.0; 3]; 3],
+            normals: vec![[0.0, 0.0, 2.0]; 3],
+            indices: vec![0, 1, 2],
+            ..Default::default()
+        };
         assert_eq!(m.validated().unwrap().normals[0], [0.0, 0.0, 1.0]);
         m.indices = vec![0, 1, 3];
         assert!(m.validated().unwrap_err().to_string().contains("index 3"));

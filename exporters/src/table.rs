@@ -1,17 +1,17 @@
 //! The tabulated p(h) and its hemi-octahedral parameterisation — the one definition that writers,
 //! readers and renderers share.
 //!
-//! Inputs: a resolution R and R² RGB texels (row-major, index = y·R + x), or a function of the local
-//! half-vector to tabulate. Outputs: [`hemi_oct_decode`] (texel coordinates → h), [`hemi_oct_encode`]
-//! (h → texel coordinates), [`PhTable::lookup`] (bilinear on a corner-aligned grid) and
-//! [`PhTable::tabulate`].
+//! Inputs: a resolution R and R² RGB texels (row-major, index = y·R + x), or a function of the
+//! local half-vector to tabulate. Outputs: [`hemi_oct_decode`] (texel coordinates → h),
+//! [`hemi_oct_encode`] (h → texel coordinates), [`PhTable::lookup`] (bilinear on a corner-aligned
+//! grid) and [`PhTable::tabulate`].
 //!
-//! Parameterisation ("hemi-octahedral", corner-aligned): texel (x, y) sits at u = x/(R−1), v = y/(R−1)
-//! (the outer texels lie on the horizon, so bilinear lookup covers the square without clamping);
-//! a = 2u−1, b = 2v−1, px = (a+b)/2, py = (a−b)/2, z = 1−|px|−|py| (≥ 0 on the whole square),
-//! h = normalize(px, py, z). Inverse: l1 = |hx|+|hy|+hz, px = hx/l1, py = hy/l1, u = (px+py+1)/2,
-//! v = (px−py+1)/2. The square's border is the horizon; its centre is the normal. Row y = 0 is the
-//! first (top) scan line of the EXR.
+//! Parameterisation ("hemi-octahedral", corner-aligned): texel (x, y) sits at u = x/(R−1), v =
+//! y/(R−1) (the outer texels lie on the horizon, so bilinear lookup covers the square without
+//! clamping); a = 2u−1, b = 2v−1, px = (a+b)/2, py = (a−b)/2, z = 1−|px|−|py| (≥ 0 on the whole
+//! square), h = normalize(px, py, z). Inverse: l1 = |hx|+|hy|+hz, px = hx/l1, py = hy/l1, u =
+//! (px+py+1)/2, v = (px−py+1)/2. The square's border is the horizon; its centre is the normal. Row
+//! y = 0 is the first (top) scan line of the EXR.
 //!
 //! Invariants: decode ∘ encode is the identity on the upper hemisphere (to rounding); lookup at a
 //! texel centre returns that texel exactly; no IO.
@@ -22,9 +22,10 @@ pub const PARAMETERISATION: &str = "hemi-octahedral";
 /// The parameterisation's definition, written beside its name.
 pub const PARAMETERISATION_FORMULA: &str = "hemi-octahedral: texel (x, y) of an RxR table sits at u = x/(R-1), v = y/(R-1) (corner-aligned: the outer texels lie on the horizon); a = 2u-1, b = 2v-1, px = (a+b)/2, py = (a-b)/2, z = 1-|px|-|py|, h = normalize(px, py, z) in the local frame (z = normal, x = tangent); inverse l1 = |hx|+|hy|+hz, u = (hx/l1+hy/l1+1)/2, v = (hx/l1-hy/l1+1)/2; bilinear between texels; row y = 0 is the first (top) scan line";
 
-/// The table resolution glint writes unless told otherwise: 512 (3 MiB of RGB f32). Measured against
-/// the exact lobe sum at λ = 81 (σ = π/40): specular f_r within 0.7 % where ≥ 1 % of its peak, error
-/// ≤ 0.2 % of the peak everywhere; see exporters/README.md for the table per resolution.
+/// The table resolution glint writes unless told otherwise: 512 (3 MiB of RGB f32). Measured
+/// against the exact lobe sum at λ = 81 (σ = π/40): specular f_r within 0.7 % where ≥ 1 % of its
+/// peak, error ≤ 0.2 % of the peak everywhere; see exporters/README.md for the table per
+/// resolution.
 pub const DEFAULT_TABLE_RESOLUTION: u32 = 512;
 
 /// Largest resolution accepted (a 16384² RGB f32 table is 3 GiB).
@@ -38,7 +39,11 @@ pub fn hemi_oct_decode(u: f64, v: f64) -> [f64; 3] {
     let py = 0.5 * (a - b);
     let z = (1.0 - px.abs() - py.abs()).max(0.0);
     let n = (px * px + py * py + z * z).sqrt();
-    if n > 0.0 { [px / n, py / n, z / n] } else { [0.0, 0.0, 1.0] }
+    if n > 0.0 {
+        [px / n, py / n, z / n]
+    } else {
+        [0.0, 0.0, 1.0]
+    }
 }
 
 /// Table coordinates (u, v) ∈ [0, 1]² of a local direction; h.z < 0 is treated as 0 (the horizon),
@@ -68,7 +73,10 @@ impl PhTable {
         let mut texels = Vec::with_capacity(r * r);
         for y in 0..r {
             for x in 0..r {
-                let h = hemi_oct_decode(x as f64 / (r - 1).max(1) as f64, y as f64 / (r - 1).max(1) as f64);
+                let h = hemi_oct_decode(
+                    x as f64 / (r - 1).max(1) as f64,
+                    y as f64 / (r - 1).max(1) as f64,
+                );
                 let v = p(h);
                 texels.push([v[0] as f32, v[1] as f32, v[2] as f32]);
             }
@@ -79,11 +87,18 @@ impl PhTable {
     /// Checks the size and that every texel is finite.
     pub fn validate(&self) -> Result<(), String> {
         if self.resolution < 2 || self.resolution > MAX_TABLE_RESOLUTION {
-            return Err(format!("resolution {} is outside 2..={MAX_TABLE_RESOLUTION}", self.resolution));
+            return Err(format!(
+                "resolution {} is outside 2..={MAX_TABLE_RESOLUTION}",
+                self.resolution
+            ));
         }
         let want = self.resolution as usize * self.resolution as usize;
         if self.texels.len() != want {
-            return Err(format!("has {} texels, resolution {} needs {want}", self.texels.len(), self.resolution));
+            return Err(format!(
+                "has {} texels, resolution {} needs {want}",
+                self.texels.len(),
+                self.resolution
+            ));
         }
         if self.texels.iter().flatten().any(|x| !x.is_finite()) {
             return Err("has a non-finite texel".into());
@@ -130,9 +145,14 @@ mod tests {
             for j in 0..=20 {
                 let (u, v) = (i as f64 / 20.0, j as f64 / 20.0);
                 let h = hemi_oct_decode(u, v);
-                assert!((h[0] * h[0] + h[1] * h[1] + h[2] * h[2] - 1.0).abs() < 1e-12 && h[2] >= 0.0);
+                assert!(
+                    (h[0] * h[0] + h[1] * h[1] + h[2] * h[2] - 1.0).abs() < 1e-12 && h[2] >= 0.0
+                );
                 let (u2, v2) = hemi_oct_encode(h);
-                assert!((u - u2).abs() < 1e-12 && (v - v2).abs() < 1e-12, "{u} {v} -> {u2} {v2}");
+                assert!(
+                    (u - u2).abs() < 1e-12 && (v - v2).abs() < 1e-12,
+                    "{u} {v} -> {u2} {v2}"
+                );
             }
         }
         assert_eq!(hemi_oct_decode(0.5, 0.5), [0.0, 0.0, 1.0]);
@@ -159,10 +179,22 @@ mod tests {
         }
         // Corner-aligned: +x (u = v = 1) is the last texel itself.
         let corner = t.lookup([1.0, 0.0, 0.0]);
-        assert!((corner[0] - t.texels[63][0] as f64).abs() < 1e-6 && (corner[0] - 1.0).abs() < 1e-6);
+        assert!(
+            (corner[0] - t.texels[63][0] as f64).abs() < 1e-6 && (corner[0] - 1.0).abs() < 1e-6
+        );
         // A constant table is constant everywhere.
-        let c = PhTable { resolution: 4, texels: vec![[0.25, 0.5, 1.0]; 16] };
+        let c = PhTable {
+            resolution: 4,
+            texels: vec![[0.25, 0.5, 1.0]; 16],
+        };
         assert_eq!(c.lookup([0.3, -0.7, 0.2]), [0.25, 0.5, 1.0]);
-        assert!(PhTable { resolution: 3, texels: vec![] }.validate().is_err());
+        assert!(
+            PhTable {
+                resolution: 3,
+                texels: vec![]
+            }
+            .validate()
+            .is_err()
+        );
     }
 }

@@ -1,9 +1,9 @@
-//! USD text (`<name>.usda`): a UsdShade Material with a UsdPreviewSurface fallback and a glint shader
-//! carrying the lobe table, bound to the caller's mesh or to a preview sphere.
+//! USD text (`<name>.usda`): a UsdShade Material with a UsdPreviewSurface fallback and a glint
+//! shader carrying the lobe table, bound to the caller's mesh or to a preview sphere.
 //!
 //! Inputs: a validated [`MaterialDesc`] and an optional [`SceneMesh`]. Outputs: the text
-//! ([`encode_usda`]) and the exporter ([`UsdExporter`]), which also writes the `<name>_ph.exr` table the
-//! stage references. Layout:
+//! ([`encode_usda`]) and the exporter ([`UsdExporter`]), which also writes the `<name>_ph.exr`
+//! table the stage references. Layout:
 //!
 //! ```text
 //! /Root (Xform, defaultPrim, kind = component; stage: upAxis Y, metersPerUnit 1)
@@ -29,15 +29,15 @@
 //!
 //! Why the glint shader has no `info:id` and no Sdr definition: an unregistered `info:id` fails
 //! `UsdUtils.ComplianceChecker` ("invalid shader node") and the UsdValidation validators; a
-//! `sourceAsset` definition resolves, but usd-core's shader-definition parser first tries the node's
-//! hashed identifier as a prim name and warns "Invalid prim name" on stderr every time the node is
-//! resolved. A shader without an identifier is valid, passes both checkers and prints nothing. The
-//! exact meaning of every input is docs/conventions.md.
+//! `sourceAsset` definition resolves, but usd-core's shader-definition parser first tries the
+//! node's hashed identifier as a prim name and warns "Invalid prim name" on stderr every time the
+//! node is resolved. A shader without an identifier is valid, passes both checkers and prints
+//! nothing. The exact meaning of every input is docs/conventions.md.
 //!
-//! Invariants: the lobe table's numbers are doubles written shortest round-trip (`{:?}` of f64), so a
-//! reader recovers them exactly; geometry is f32 (`{:?}` of f32); strings are escaped; prim names are sanitised identifiers; no
-//! timestamps or hash-map order, so equal inputs give equal bytes. usd-core's checks pass (tested by
-//! `python/check_usd.py`).
+//! Invariants: the lobe table's numbers are doubles written shortest round-trip (`{:?}` of f64), so
+//! a reader recovers them exactly; geometry is f32 (`{:?}` of f32); strings are escaped; prim names
+//! are sanitised identifiers; no timestamps or hash-map order, so equal inputs give equal bytes.
+//! usd-core's checks pass (tested by `python/check_usd.py`).
 
 use crate::error::ExportError;
 use crate::exporter::{Exporter, OutputFile};
@@ -96,7 +96,10 @@ fn quote(s: &str) -> String {
 
 /// A valid prim name from a material name: `[A-Za-z_][A-Za-z0-9_]*`.
 pub fn prim_name(name: &str) -> String {
-    let mut s: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let mut s: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
     if s.is_empty() || s.starts_with(|c: char| c.is_ascii_digit()) {
         s.insert(0, '_');
     }
@@ -126,23 +129,51 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let mut inputs: Vec<(&str, &str, String)> = vec![
         ("string", "brdf_convention", quote(&desc.brdf_convention)),
         ("double3[]", "centres", list(&desc.centres, |c| dvec3(*c))),
-        ("double[]", "coefficients_r", list(&desc.coefficients[0], |x| dnum(*x))),
-        ("double[]", "coefficients_g", list(&desc.coefficients[1], |x| dnum(*x))),
-        ("double[]", "coefficients_b", list(&desc.coefficients[2], |x| dnum(*x))),
+        (
+            "double[]",
+            "coefficients_r",
+            list(&desc.coefficients[0], |x| dnum(*x)),
+        ),
+        (
+            "double[]",
+            "coefficients_g",
+            list(&desc.coefficients[1], |x| dnum(*x)),
+        ),
+        (
+            "double[]",
+            "coefficients_b",
+            list(&desc.coefficients[2], |x| dnum(*x)),
+        ),
         ("string", "conventions", quote(CONVENTIONS_DOC)),
         ("double", "f0", dnum(desc.f0)),
         ("string", "frame_convention", quote(&desc.frame_convention)),
-        ("bool", "isotropic", (if desc.isotropic { "1" } else { "0" }).to_string()),
+        (
+            "bool",
+            "isotropic",
+            (if desc.isotropic { "1" } else { "0" }).to_string(),
+        ),
         ("double", "lambda", dnum(desc.lambda)),
         ("token", "layout", quote(&desc.layout)),
         ("token", "model", quote(&desc.model)),
         ("token", "parameterisation", quote(PARAMETERISATION)),
-        ("string", "parameterisation_formula", quote(PARAMETERISATION_FORMULA)),
+        (
+            "string",
+            "parameterisation_formula",
+            quote(PARAMETERISATION_FORMULA),
+        ),
         ("color3d", "rho_d", dvec3(desc.rho_d)),
         ("double", "sigma", dnum(desc.sigma)),
-        ("asset", "table", format!("@./{}@", ph_exr_file_name(&desc.name))),
+        (
+            "asset",
+            "table",
+            format!("@./{}@", ph_exr_file_name(&desc.name)),
+        ),
         ("int", "table_resolution", desc.table.resolution.to_string()),
-        ("int", "version", desc.version.min(i32::MAX as u32).to_string()),
+        (
+            "int",
+            "version",
+            desc.version.min(i32::MAX as u32).to_string(),
+        ),
     ];
     inputs.sort_by(|a, b| a.1.cmp(b.1));
     let mut o = String::new();
@@ -150,7 +181,17 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(o, "#usda 1.0");
     let _ = writeln!(o, "(");
     let _ = writeln!(o, "    defaultPrim = \"Root\"");
-    let _ = writeln!(o, "    doc = {}", quote(&format!("glint material '{}' ({} v{}), written by glint-exporters {}", desc.name, desc.model, desc.version, env!("CARGO_PKG_VERSION"))));
+    let _ = writeln!(
+        o,
+        "    doc = {}",
+        quote(&format!(
+            "glint material '{}' ({} v{}), written by glint-exporters {}",
+            desc.name,
+            desc.model,
+            desc.version,
+            env!("CARGO_PKG_VERSION")
+        ))
+    );
     let _ = writeln!(o, "    metersPerUnit = 1");
     let _ = writeln!(o, "    upAxis = \"Y\"");
     let _ = writeln!(o, ")");
@@ -162,33 +203,77 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(o, "                dictionary glint = {{");
     if let Some((strength, rotation)) = fb.anisotropy {
         let _ = writeln!(o, "                    dictionary fallback_anisotropy = {{");
-        let _ = writeln!(o, "                        string convention = {}", quote(ANISOTROPY_CONVENTION));
+        let _ = writeln!(
+            o,
+            "                        string convention = {}",
+            quote(ANISOTROPY_CONVENTION)
+        );
         let _ = writeln!(o, "                        double rotation = {rotation:?}");
         let _ = writeln!(o, "                        double strength = {strength:?}");
         let _ = writeln!(o, "                    }}");
     }
-    let _ = writeln!(o, "                    double fallback_relative_error = {:?}", fb.relative_error);
+    let _ = writeln!(
+        o,
+        "                    double fallback_relative_error = {:?}",
+        fb.relative_error
+    );
     let _ = writeln!(o, "                    dictionary provenance = {{");
     for (k, v) in &desc.provenance {
-        let _ = writeln!(o, "                        string {} = {}", quote(k), quote(v));
+        let _ = writeln!(
+            o,
+            "                        string {} = {}",
+            quote(k),
+            quote(v)
+        );
     }
     let _ = writeln!(o, "                    }}");
     let _ = writeln!(o, "                }}");
     let _ = writeln!(o, "            }}");
     let _ = writeln!(o, "        )\n        {{");
-    let _ = writeln!(o, "            token outputs:{RENDER_CONTEXT}:surface.connect = <{mat_path}/GlintDbrdf.outputs:surface>");
-    let _ = writeln!(o, "            token outputs:surface.connect = <{mat_path}/PreviewSurface.outputs:surface>");
+    let _ = writeln!(
+        o,
+        "            token outputs:{RENDER_CONTEXT}:surface.connect = <{mat_path}/GlintDbrdf.outputs:surface>"
+    );
+    let _ = writeln!(
+        o,
+        "            token outputs:surface.connect = <{mat_path}/PreviewSurface.outputs:surface>"
+    );
     let _ = writeln!(o);
-    let _ = writeln!(o, "            def Shader \"PreviewSurface\"\n            {{");
-    let _ = writeln!(o, "                uniform token info:id = \"UsdPreviewSurface\"");
-    let _ = writeln!(o, "                color3f inputs:diffuseColor = {}", vec3(fb.base_color));
-    let _ = writeln!(o, "                float inputs:metallic = {}", num(fb.metallic));
-    let _ = writeln!(o, "                float inputs:roughness = {}", num(fb.roughness));
+    let _ = writeln!(
+        o,
+        "            def Shader \"PreviewSurface\"\n            {{"
+    );
+    let _ = writeln!(
+        o,
+        "                uniform token info:id = \"UsdPreviewSurface\""
+    );
+    let _ = writeln!(
+        o,
+        "                color3f inputs:diffuseColor = {}",
+        vec3(fb.base_color)
+    );
+    let _ = writeln!(
+        o,
+        "                float inputs:metallic = {}",
+        num(fb.metallic)
+    );
+    let _ = writeln!(
+        o,
+        "                float inputs:roughness = {}",
+        num(fb.roughness)
+    );
     let _ = writeln!(o, "                int inputs:useSpecularWorkflow = 0");
     let _ = writeln!(o, "                token outputs:surface");
     let _ = writeln!(o, "            }}");
     let _ = writeln!(o);
-    let _ = writeln!(o, "            def Shader \"GlintDbrdf\" (\n                doc = {}\n            )\n            {{", quote(&format!("glint's BRDF ({}): {}", desc.model, desc.brdf_convention)));
+    let _ = writeln!(
+        o,
+        "            def Shader \"GlintDbrdf\" (\n                doc = {}\n            )\n            {{",
+        quote(&format!(
+            "glint's BRDF ({}): {}",
+            desc.model, desc.brdf_convention
+        ))
+    );
     for (kind, name, value) in &inputs {
         let _ = writeln!(o, "                {kind} inputs:{name} = {value}");
     }
@@ -207,28 +292,60 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
                 }
             }
             let v3 = |p: &[f32; 3]| format!("({}, {}, {})", num32(p[0]), num32(p[1]), num32(p[2]));
-            let _ = writeln!(o, "    def Mesh \"{}\" (\n        prepend apiSchemas = [\"MaterialBindingAPI\"]\n    )\n    {{", prim_name(&format!("{}_mesh", desc.name)));
+            let _ = writeln!(
+                o,
+                "    def Mesh \"{}\" (\n        prepend apiSchemas = [\"MaterialBindingAPI\"]\n    )\n    {{",
+                prim_name(&format!("{}_mesh", desc.name))
+            );
             let _ = writeln!(o, "        float3[] extent = [{}, {}]", v3(&lo), v3(&hi));
-            let _ = writeln!(o, "        int[] faceVertexCounts = {}", list(&vec![3u8; m.indices.len() / 3], |x| x.to_string()));
-            let _ = writeln!(o, "        int[] faceVertexIndices = {}", list(&m.indices, |x| x.to_string()));
+            let _ = writeln!(
+                o,
+                "        int[] faceVertexCounts = {}",
+                list(&vec![3u8; m.indices.len() / 3], |x| x.to_string())
+            );
+            let _ = writeln!(
+                o,
+                "        int[] faceVertexIndices = {}",
+                list(&m.indices, |x| x.to_string())
+            );
             let _ = writeln!(o, "        rel material:binding = <{mat_path}>");
             let _ = writeln!(o, "        point3f[] points = {}", list(&m.positions, v3));
-            let _ = writeln!(o, "        normal3f[] primvars:normals = {} (\n            interpolation = \"vertex\"\n        )", list(&m.normals, v3));
+            let _ = writeln!(
+                o,
+                "        normal3f[] primvars:normals = {} (\n            interpolation = \"vertex\"\n        )",
+                list(&m.normals, v3)
+            );
             if let Some(uv) = &m.uvs {
                 // USD's st has v up; glTF's TEXCOORD_0 has v down.
                 let st = |t: &[f32; 2]| format!("({}, {})", num32(t[0]), num32(1.0 - t[1]));
-                let _ = writeln!(o, "        texCoord2f[] primvars:st = {} (\n            interpolation = \"vertex\"\n        )", list(uv, st));
+                let _ = writeln!(
+                    o,
+                    "        texCoord2f[] primvars:st = {} (\n            interpolation = \"vertex\"\n        )",
+                    list(uv, st)
+                );
             }
             if let Some(t) = &m.tangents {
-                let xyz = |t: &[f32; 4]| format!("({}, {}, {})", num32(t[0]), num32(t[1]), num32(t[2]));
-                let _ = writeln!(o, "        float3[] primvars:tangents = {} (\n            interpolation = \"vertex\"\n        )", list(t, xyz));
-                let _ = writeln!(o, "        float[] primvars:tangentSigns = {} (\n            interpolation = \"vertex\"\n        )", list(t, |t| num32(t[3])));
+                let xyz =
+                    |t: &[f32; 4]| format!("({}, {}, {})", num32(t[0]), num32(t[1]), num32(t[2]));
+                let _ = writeln!(
+                    o,
+                    "        float3[] primvars:tangents = {} (\n            interpolation = \"vertex\"\n        )",
+                    list(t, xyz)
+                );
+                let _ = writeln!(
+                    o,
+                    "        float[] primvars:tangentSigns = {} (\n            interpolation = \"vertex\"\n        )",
+                    list(t, |t| num32(t[3]))
+                );
             }
             let _ = writeln!(o, "        uniform token subdivisionScheme = \"none\"");
             let _ = writeln!(o, "    }}");
         }
         None => {
-            let _ = writeln!(o, "    def Sphere \"PreviewSphere\" (\n        prepend apiSchemas = [\"MaterialBindingAPI\"]\n    )\n    {{");
+            let _ = writeln!(
+                o,
+                "    def Sphere \"PreviewSphere\" (\n        prepend apiSchemas = [\"MaterialBindingAPI\"]\n    )\n    {{"
+            );
             let _ = writeln!(o, "        float3[] extent = [(-1, -1, -1), (1, 1, 1)]");
             let _ = writeln!(o, "        rel material:binding = <{mat_path}>");
             let _ = writeln!(o, "        double radius = 1");
@@ -252,19 +369,47 @@ fn write_camera(o: &mut String, camera: &crate::view::SceneCamera) {
     let horizontal = vertical * camera.width as f64 / camera.height as f64;
     let far = camera.zfar.unwrap_or(camera.znear * 1e7);
     let _ = writeln!(o);
-    let _ = writeln!(o, "    def Camera \"{}\" (\n        doc = \"the view glint renders (docs/conventions.md section 4): {}x{} pixels, vertical field of view {:?} degrees\"\n    )\n    {{", prim_name(&format!("{}_camera", camera.name)), camera.width, camera.height, camera.yfov_rad.to_degrees());
-    let _ = writeln!(o, "        float2 clippingRange = ({}, {})", num(camera.znear), num(far));
+    let _ = writeln!(
+        o,
+        "    def Camera \"{}\" (\n        doc = \"the view glint renders (docs/conventions.md section 4): {}x{} pixels, vertical field of view {:?} degrees\"\n    )\n    {{",
+        prim_name(&format!("{}_camera", camera.name)),
+        camera.width,
+        camera.height,
+        camera.yfov_rad.to_degrees()
+    );
+    let _ = writeln!(
+        o,
+        "        float2 clippingRange = ({}, {})",
+        num(camera.znear),
+        num(far)
+    );
     let _ = writeln!(o, "        float focalLength = {}", num(focal));
     let _ = writeln!(o, "        float horizontalAperture = {}", num(horizontal));
     let _ = writeln!(o, "        token projection = \"perspective\"");
     let _ = writeln!(o, "        float verticalAperture = {}", num(vertical));
-    let _ = writeln!(o, "        matrix4d xformOp:transform = ({}, {}, {}, {})", row4(r, 0.0), row4(u, 0.0), row4([-f[0], -f[1], -f[2]], 0.0), row4(e, 1.0));
-    let _ = writeln!(o, "        uniform token[] xformOpOrder = [\"xformOp:transform\"]");
+    let _ = writeln!(
+        o,
+        "        matrix4d xformOp:transform = ({}, {}, {}, {})",
+        row4(r, 0.0),
+        row4(u, 0.0),
+        row4([-f[0], -f[1], -f[2]], 0.0),
+        row4(e, 1.0)
+    );
+    let _ = writeln!(
+        o,
+        "        uniform token[] xformOpOrder = [\"xformOp:transform\"]"
+    );
     let _ = writeln!(o, "    }}");
 }
 
 fn row4(v: [f64; 3], w: f64) -> String {
-    format!("({}, {}, {}, {})", dnum(v[0]), dnum(v[1]), dnum(v[2]), dnum(w))
+    format!(
+        "({}, {}, {}, {})",
+        dnum(v[0]),
+        dnum(v[1]),
+        dnum(v[2]),
+        dnum(w)
+    )
 }
 
 /// Writes `<name>.usda` and the `<name>_ph.exr` it references.
@@ -278,11 +423,22 @@ impl Exporter for UsdExporter {
     fn extensions(&self) -> &'static [&'static str] {
         &["usda", "exr"]
     }
-    fn build(&self, desc: &MaterialDesc, scene: Option<&SceneMesh>, dir: &Path) -> Result<Vec<OutputFile>, ExportError> {
+    fn build(
+        &self,
+        desc: &MaterialDesc,
+        scene: Option<&SceneMesh>,
+        dir: &Path,
+    ) -> Result<Vec<OutputFile>, ExportError> {
         let text = encode_usda(desc, scene)?;
         Ok(vec![
-            OutputFile { path: dir.join(format!("{}.usda", desc.name)), bytes: text.into_bytes() },
-            OutputFile { path: dir.join(ph_exr_file_name(&desc.name)), bytes: encode_ph_exr(desc)? },
+            OutputFile {
+                path: dir.join(format!("{}.usda", desc.name)),
+                bytes: text.into_bytes(),
+            },
+            OutputFile {
+                path: dir.join(ph_exr_file_name(&desc.name)),
+                bytes: encode_ph_exr(desc)?,
+            },
         ])
     }
 }
@@ -298,6 +454,9 @@ mod tests {
         assert_eq!(quote("a\"b\\c\nd"), "\"a\\\"b\\\\c\\nd\"");
         assert_eq!(num(0.1), "0.1");
         assert_eq!(num(1.0), "1.0");
-        assert_eq!("1e-7".parse::<f32>().unwrap(), num(1e-7).parse::<f32>().unwrap());
+        assert_eq!(
+            "1e-7".parse::<f32>().unwrap(),
+            num(1e-7).parse::<f32>().unwrap()
+        );
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! Inputs: plain data the caller fills from its own camera and environment map. Outputs: the types,
 //! their validation, and [`SceneEnvironment::lookup_bilinear`] (glint's bilinear lookup, which the
-//! Mitsuba exporter resamples). Invariants: no IO; validation rejects what would make a file invalid.
+//! Mitsuba exporter resamples). Invariants: no IO; validation rejects what would make a file
+//! invalid.
 
 use crate::error::ExportError;
 
@@ -32,23 +33,54 @@ impl SceneCamera {
     pub fn validate(&self) -> Result<(), ExportError> {
         let bad = |reason: String| Err(ExportError::InvalidView { reason });
         let n = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let numbers = self.eye.iter().chain(&self.forward).chain(&self.up).chain([&self.yfov_rad, &self.znear]);
-        if numbers.into_iter().any(|x| !x.is_finite()) || self.zfar.is_some_and(|f| !f.is_finite()) {
-            return bad(format!("camera '{}' has a non-finite number", self.name.escape_debug()));
+        let numbers = self
+            .eye
+            .iter()
+            .chain(&self.forward)
+            .chain(&self.up)
+            .chain([&self.yfov_rad, &self.znear]);
+        if numbers.into_iter().any(|x| !x.is_finite()) || self.zfar.is_some_and(|f| !f.is_finite())
+        {
+            return bad(format!(
+                "camera '{}' has a non-finite number",
+                self.name.escape_debug()
+            ));
         }
-        let dot = self.forward[0] * self.up[0] + self.forward[1] * self.up[1] + self.forward[2] * self.up[2];
-        if (n(self.forward) - 1.0).abs() > 1e-4 || (n(self.up) - 1.0).abs() > 1e-4 || dot.abs() > 1e-4 {
-            return bad(format!("camera '{}': forward and up must be orthogonal unit vectors", self.name.escape_debug()));
+        let dot = self.forward[0] * self.up[0]
+            + self.forward[1] * self.up[1]
+            + self.forward[2] * self.up[2];
+        if (n(self.forward) - 1.0).abs() > 1e-4
+            || (n(self.up) - 1.0).abs() > 1e-4
+            || dot.abs() > 1e-4
+        {
+            return bad(format!(
+                "camera '{}': forward and up must be orthogonal unit vectors",
+                self.name.escape_debug()
+            ));
         }
         if !(self.yfov_rad > 0.0 && self.yfov_rad < std::f64::consts::PI) {
-            return bad(format!("camera '{}': the field of view {} rad is outside (0, pi)", self.name.escape_debug(), self.yfov_rad));
+            return bad(format!(
+                "camera '{}': the field of view {} rad is outside (0, pi)",
+                self.name.escape_debug(),
+                self.yfov_rad
+            ));
         }
         // (finiteness was checked above, so the comparisons are total)
         if self.znear <= 0.0 || self.zfar.is_some_and(|f| f <= self.znear) {
-            return bad(format!("camera '{}': near {} and far {:?} planes are not 0 < near < far", self.name.escape_debug(), self.znear, self.zfar));
+            return bad(format!(
+                "camera '{}': near {} and far {:?} planes are not 0 < near < far",
+                self.name.escape_debug(),
+                self.znear,
+                self.zfar
+            ));
         }
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return bad(format!("camera '{}': image size {}x{} is outside 1..16384", self.name.escape_debug(), self.width, self.height));
+            return bad(format!(
+                "camera '{}': image size {}x{} is outside 1..16384",
+                self.name.escape_debug(),
+                self.width,
+                self.height
+            ));
         }
         Ok(())
     }
@@ -65,7 +97,11 @@ impl SceneCamera {
     /// The camera's +X (image right): forward × up.
     pub fn right(&self) -> [f64; 3] {
         let (f, u) = (self.forward, self.up);
-        [f[1] * u[2] - f[2] * u[1], f[2] * u[0] - f[0] * u[2], f[0] * u[1] - f[1] * u[0]]
+        [
+            f[1] * u[2] - f[2] * u[1],
+            f[2] * u[0] - f[0] * u[2],
+            f[0] * u[1] - f[1] * u[0],
+        ]
     }
 }
 
@@ -87,12 +123,25 @@ impl SceneEnvironment {
     pub fn validate(&self) -> Result<(), ExportError> {
         let bad = |reason: String| Err(ExportError::InvalidView { reason });
         if self.width == 0 || self.height == 0 || self.width > 65536 || self.height > 32768 {
-            return bad(format!("the environment's size {}x{} is outside 1..65536 x 1..32768", self.width, self.height));
+            return bad(format!(
+                "the environment's size {}x{} is outside 1..65536 x 1..32768",
+                self.width, self.height
+            ));
         }
         if self.texels.len() != self.width * self.height {
-            return bad(format!("the environment has {} texels for {}x{}", self.texels.len(), self.width, self.height));
+            return bad(format!(
+                "the environment has {} texels for {}x{}",
+                self.texels.len(),
+                self.width,
+                self.height
+            ));
         }
-        if self.texels.iter().flatten().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        if self
+            .texels
+            .iter()
+            .flatten()
+            .any(|x| !(x.is_finite() && *x >= 0.0))
+        {
             return bad("the environment has a negative or non-finite texel".into());
         }
         if !self.rotation_rad.is_finite() {
@@ -101,8 +150,8 @@ impl SceneEnvironment {
         Ok(())
     }
 
-    /// glint's bilinear lookup at equirectangular (u, v): texel centres at ((i + 0.5)/W, (j + 0.5)/H),
-    /// u wraps, v clamps (the map unrotated).
+    /// glint's bilinear lookup at equirectangular (u, v): texel centres at ((i + 0.5)/W, (j +
+    /// 0.5)/H), u wraps, v clamps (the map unrotated).
     pub fn lookup_bilinear(&self, u: f64, v: f64) -> [f64; 3] {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = u * self.width as f64 - 0.5;

@@ -12,7 +12,16 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 fn listing(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    std::fs::read_dir(dir).unwrap().map(|e| e.unwrap()).map(|e| (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap())).collect()
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect()
 }
 
 fn small_merl() -> MerlTable {
@@ -38,13 +47,27 @@ fn exports_are_deterministic_and_leave_no_temporary_files() {
     desc.merl = Some(small_merl());
     let mesh = scene_mesh();
     let written = export_all(&desc, Some(&mesh), &a, &[]).unwrap();
-    let names: Vec<_> = written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    let names: Vec<_> = written
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
     assert_eq!(names, ["det_ph.exr", "det.glb", "det.usda", "det.binary"]);
     // Twice into the same folder, and once into another (a fresh process state for the counters).
     export_all(&desc, Some(&mesh), &a, &[]).unwrap();
-    export_all(&desc.clone(), Some(&mesh.clone()), &b, &["merl", "usd", "gltf", "exr"]).unwrap();
+    export_all(
+        &desc.clone(),
+        Some(&mesh.clone()),
+        &b,
+        &["merl", "usd", "gltf", "exr"],
+    )
+    .unwrap();
     let (la, lb) = (listing(&a), listing(&b));
-    assert_eq!(la.keys().collect::<Vec<_>>(), ["det.binary", "det.glb", "det.usda", "det_ph.exr"], "stray files: {:?}", la.keys());
+    assert_eq!(
+        la.keys().collect::<Vec<_>>(),
+        ["det.binary", "det.glb", "det.usda", "det_ph.exr"],
+        "stray files: {:?}",
+        la.keys()
+    );
     for (name, bytes) in &la {
         assert!(&lb[name] == bytes, "{name} differs between exports");
     }
@@ -72,22 +95,37 @@ fn failures_write_nothing_and_say_why_in_one_line() {
     let file = dir.join("not-a-dir");
     std::fs::write(&file, b"x").unwrap();
     let m = one_line(export_all(&desc, None, &file, &[]).unwrap_err());
-    assert!(m.contains("not-a-dir") && m.contains("not an existing directory"), "{m}");
+    assert!(
+        m.contains("not-a-dir") && m.contains("not an existing directory"),
+        "{m}"
+    );
     for e in registry() {
-        assert!(matches!(e.export(&desc, None, &file), Err(ExportError::NotADirectory { .. })));
+        assert!(matches!(
+            e.export(&desc, None, &file),
+            Err(ExportError::NotADirectory { .. })
+        ));
     }
     // A missing folder.
-    assert!(matches!(export_all(&desc, None, &dir.join("missing"), &["exr"]), Err(ExportError::NotADirectory { .. })));
+    assert!(matches!(
+        export_all(&desc, None, &dir.join("missing"), &["exr"]),
+        Err(ExportError::NotADirectory { .. })
+    ));
     // An unknown format is refused before anything is written, even after a valid one.
     let m = one_line(export_all(&desc, None, &dir, &["exr", "fbx"]).unwrap_err());
-    assert!(m.contains("'fbx'") && m.contains("exr, gltf, usd, merl"), "{m}");
-    // No MERL table: the MERL exporter refuses, and export_all writes nothing (it builds all first).
+    assert!(
+        m.contains("'fbx'") && m.contains("exr, gltf, usd, merl"),
+        "{m}"
+    );
+    // No MERL table: the MERL exporter refuses, and export_all writes nothing (it builds all
+    // first).
     let m = one_line(export_all(&desc, None, &dir, &["exr", "merl"]).unwrap_err());
     assert!(m.contains("no MERL table"), "{m}");
     // Bad descriptions.
     let mut bad = desc.clone();
     bad.coefficients[2].pop();
-    assert!(one_line(export_all(&bad, None, &dir, &["gltf"]).unwrap_err()).contains("coefficients"));
+    assert!(
+        one_line(export_all(&bad, None, &dir, &["gltf"]).unwrap_err()).contains("coefficients")
+    );
     let mut bad = desc.clone();
     bad.lambda = f64::NAN;
     assert!(one_line(export_all(&bad, None, &dir, &["usd"]).unwrap_err()).contains("lambda"));
@@ -96,7 +134,10 @@ fn failures_write_nothing_and_say_why_in_one_line() {
     assert!(one_line(export_all(&bad, None, &dir, &["exr"]).unwrap_err()).contains("table"));
     let mut bad = desc.clone();
     bad.name = "../escape".into();
-    assert!(matches!(export_all(&bad, None, &dir, &[]), Err(ExportError::InvalidName { .. })));
+    assert!(matches!(
+        export_all(&bad, None, &dir, &[]),
+        Err(ExportError::InvalidName { .. })
+    ));
     let mut bad = desc.clone();
     bad.fallback.roughness = 1.5;
     assert!(one_line(export_all(&bad, None, &dir, &["gltf"]).unwrap_err()).contains("fallback"));
@@ -104,7 +145,10 @@ fn failures_write_nothing_and_say_why_in_one_line() {
     let mut mesh = scene_mesh();
     mesh.indices.push(999);
     mesh.indices.extend_from_slice(&[0, 1]);
-    assert!(one_line(export_all(&desc, Some(&mesh), &dir, &["gltf", "usd"]).unwrap_err()).contains("index 999"));
+    assert!(
+        one_line(export_all(&desc, Some(&mesh), &dir, &["gltf", "usd"]).unwrap_err())
+            .contains("index 999")
+    );
     // A bad MERL table (non-finite).
     let mut bad = desc.clone();
     bad.merl = Some(MerlTable::sample(|_, _| [f64::INFINITY, 0.0, 0.0]));
@@ -121,7 +165,9 @@ fn an_io_failure_leaves_no_partial_file() {
     let dir = temp_dir("iofail");
     let desc = material("io", 16);
     std::fs::create_dir(dir.join("io.glb")).unwrap();
-    let m = export_all(&desc, None, &dir, &["gltf"]).unwrap_err().to_string();
+    let m = export_all(&desc, None, &dir, &["gltf"])
+        .unwrap_err()
+        .to_string();
     assert!(m.contains("io.glb") && !m.contains('\n'), "{m}");
     // The temporary file is gone and nothing after the failure was written.
     let left: Vec<_> = listing_names(&dir);
@@ -131,7 +177,10 @@ fn an_io_failure_leaves_no_partial_file() {
 }
 
 fn listing_names(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     v.sort();
     v
 }

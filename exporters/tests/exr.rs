@@ -8,7 +8,9 @@ mod common;
 
 use common::*;
 use glint_exporters::exr::{AttrValue, ph_exr_file_name};
-use glint_exporters::{Exporter, ExrExporter, PARAMETERISATION, read_ph_exr, read_ph_exr_attributes};
+use glint_exporters::{
+    Exporter, ExrExporter, PARAMETERISATION, read_ph_exr, read_ph_exr_attributes,
+};
 use std::process::Command;
 
 #[test]
@@ -19,7 +21,14 @@ fn exr_reads_back_exactly_with_its_attributes() {
     assert_eq!(files, [dir.join("table_ph.exr")]);
     let table = read_ph_exr(&files[0]).unwrap();
     assert_eq!(table.resolution, 32);
-    assert!(table.texels.iter().zip(&desc.table.texels).all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)), "pixels differ");
+    assert!(
+        table
+            .texels
+            .iter()
+            .zip(&desc.table.texels)
+            .all(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits)),
+        "pixels differ"
+    );
     let a = read_ph_exr_attributes(&files[0]).unwrap();
     assert_eq!(a["glint.model"], AttrValue::Text("dbrdf-srbf".into()));
     assert_eq!(a["glint.version"], AttrValue::Int(1));
@@ -28,15 +37,31 @@ fn exr_reads_back_exactly_with_its_attributes() {
     assert_eq!(a["glint.f0"], AttrValue::Double(desc.f0));
     assert_eq!(a["glint.rho_d"], AttrValue::Vec3(desc.rho_d));
     assert_eq!(a["glint.layout"], AttrValue::Text(desc.layout.clone()));
-    assert_eq!(a["glint.frame_convention"], AttrValue::Text(desc.frame_convention.clone()));
-    assert_eq!(a["glint.brdf_convention"], AttrValue::Text(desc.brdf_convention.clone()));
-    let AttrValue::Text(p) = &a["glint.parameterisation"] else { panic!("{:?}", a["glint.parameterisation"]) };
-    assert!(p.starts_with(PARAMETERISATION) && p.contains("px = (a+b)/2"), "{p}");
-    let AttrValue::Text(prov) = &a["glint.provenance"] else { panic!() };
+    assert_eq!(
+        a["glint.frame_convention"],
+        AttrValue::Text(desc.frame_convention.clone())
+    );
+    assert_eq!(
+        a["glint.brdf_convention"],
+        AttrValue::Text(desc.brdf_convention.clone())
+    );
+    let AttrValue::Text(p) = &a["glint.parameterisation"] else {
+        panic!("{:?}", a["glint.parameterisation"])
+    };
+    assert!(
+        p.starts_with(PARAMETERISATION) && p.contains("px = (a+b)/2"),
+        "{p}"
+    );
+    let AttrValue::Text(prov) = &a["glint.provenance"] else {
+        panic!()
+    };
     let prov: serde_json::Value = serde_json::from_str(prov).unwrap();
     assert_eq!(prov["tool"], "glint 0.1.0 (test)");
     // The non-ASCII provenance value is escaped, not dropped.
-    assert_eq!(serde_json::from_value::<std::collections::BTreeMap<String, String>>(prov).unwrap(), desc.provenance);
+    assert_eq!(
+        serde_json::from_value::<std::collections::BTreeMap<String, String>>(prov).unwrap(),
+        desc.provenance
+    );
     std::fs::remove_dir_all(dir).unwrap();
 }
 
@@ -53,10 +78,15 @@ fn exr_reader_refuses_garbage() {
 
 #[test]
 fn exr_matches_openexr_python() {
-    let Some(py) = python("OpenEXR, numpy") else { return };
+    let Some(py) = python("OpenEXR, numpy") else {
+        return;
+    };
     let dir = temp_dir("exr-py");
     // Non-square-friendly sizes and the default resolution.
-    for (name, r) in [("odd", 7u32), ("default", glint_exporters::DEFAULT_TABLE_RESOLUTION)] {
+    for (name, r) in [
+        ("odd", 7u32),
+        ("default", glint_exporters::DEFAULT_TABLE_RESOLUTION),
+    ] {
         let desc = material(name, r);
         ExrExporter.export(&desc, None, &dir).unwrap();
         let flat: Vec<f32> = desc.table.texels.iter().flatten().copied().collect();
@@ -72,7 +102,10 @@ fn exr_matches_openexr_python() {
         other[3 * (r as usize) + 1] += 1e-3;
         glint_exporters::npy::write_f32(&npy, &[r as usize, r as usize, 3], &other).unwrap();
         let (ok, out, _) = run(Command::new(&py).arg(&script).arg(&exr).arg(&npy));
-        assert!(!ok && out.contains("pixel (x=0, y=1) channel G") && out.trim().lines().count() == 1, "{out}");
+        assert!(
+            !ok && out.contains("pixel (x=0, y=1) channel G") && out.trim().lines().count() == 1,
+            "{out}"
+        );
     }
     std::fs::remove_dir_all(dir).unwrap();
 }

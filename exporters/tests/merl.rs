@@ -1,5 +1,5 @@
-//! MERL round trip: an analytic isotropic BRDF sampled into a table, written as `.binary`, read back
-//! and looked up with MERL's reference lookup at random directions.
+//! MERL round trip: an analytic isotropic BRDF sampled into a table, written as `.binary`, read
+//! back and looked up with MERL's reference lookup at random directions.
 //!
 //! Inputs: analytic BRDFs. Outputs: pass/fail, and the max relative error (with `--nocapture`).
 //! Invariants: deterministic sampling.
@@ -7,17 +7,24 @@
 mod common;
 
 use common::*;
-use glint_exporters::merl::{MERL_CELLS, MERL_FILE_BYTES, cell_centre, half_diff_coords, half_diff_to_dirs, merl_index};
+use glint_exporters::merl::{
+    MERL_CELLS, MERL_FILE_BYTES, cell_centre, half_diff_coords, half_diff_to_dirs, merl_index,
+};
 use glint_exporters::{Exporter, MerlExporter, MerlTable, merl_lookup, read_merl};
 
-/// A diffuse term plus a broad isotropic Gaussian in h·n (a function of θh only), per channel. MERL's
-/// lookup is nearest-cell, so its error is about |d ln f / dθh| times half a cell (≈ 0.6° at θh = 30°,
-/// 0.9° at 70°): a sharp lobe cannot meet 1 % (λ = 8 alone errs by ~9 %; see the next test).
+/// A diffuse term plus a broad isotropic Gaussian in h·n (a function of θh only), per channel.
+/// MERL's lookup is nearest-cell, so its error is about |d ln f / dθh| times half a cell (≈ 0.6° at
+/// θh = 30°, 0.9° at 70°): a sharp lobe cannot meet 1 % (λ = 8 alone errs by ~9 %; see the next
+/// test).
 fn analytic(wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
     let s = [wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]];
     let hz = s[2] / (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
     let lobe = |lambda: f64| (2.0 * lambda * (hz - 1.0)).exp();
-    [0.5 / std::f64::consts::PI + 0.2 * lobe(0.5), 0.4 / std::f64::consts::PI + 0.15 * lobe(1.0), 0.3 / std::f64::consts::PI + 0.1 * lobe(1.5)]
+    [
+        0.5 / std::f64::consts::PI + 0.2 * lobe(0.5),
+        0.4 / std::f64::consts::PI + 0.15 * lobe(1.0),
+        0.3 / std::f64::consts::PI + 0.1 * lobe(1.5),
+    ]
 }
 
 /// A sharper lobe (λ = 8, a function of θh only).
@@ -39,11 +46,15 @@ fn dbrdf_like(wi: [f64; 3], wo: [f64; 3]) -> [f64; 3] {
     let (k1, k2) = (wi[2], wo[2]);
     let geo = fresnel / (4.0 * (k1 + k2 * (1.0 - k1)));
     let lobe = |lambda: f64| (2.0 * lambda * (h[2] - 1.0)).exp();
-    [0.5 / std::f64::consts::PI + 0.8 * lobe(1.0) * geo, 0.3 / std::f64::consts::PI + 1.5 * lobe(2.0) * geo, 0.1 / std::f64::consts::PI + 3.0 * lobe(3.0) * geo]
+    [
+        0.5 / std::f64::consts::PI + 0.8 * lobe(1.0) * geo,
+        0.3 / std::f64::consts::PI + 1.5 * lobe(2.0) * geo,
+        0.1 / std::f64::consts::PI + 3.0 * lobe(3.0) * geo,
+    ]
 }
 
-/// Samples `f`, writes, reads back; checks the lookup against f at the selected cell's centre exactly
-/// and returns the max relative error against f itself over pairs within 70° of the normal.
+/// Samples `f`, writes, reads back; checks the lookup against f at the selected cell's centre
+/// exactly and returns the max relative error against f itself over pairs within 70° of the normal.
 fn round_trip(tag: &str, f: fn([f64; 3], [f64; 3]) -> [f64; 3]) -> f64 {
     let dir = temp_dir(tag);
     let mut desc = material("merl", 8);
@@ -53,7 +64,14 @@ fn round_trip(tag: &str, f: fn([f64; 3], [f64; 3]) -> [f64; 3]) -> f64 {
     assert_eq!(files, [dir.join("merl.binary")]);
     let bytes = std::fs::read(&files[0]).unwrap();
     assert_eq!(bytes.len(), MERL_FILE_BYTES);
-    assert_eq!(&bytes[..12], [90i32, 90, 180].iter().flat_map(|d| d.to_le_bytes()).collect::<Vec<_>>().as_slice());
+    assert_eq!(
+        &bytes[..12],
+        [90i32, 90, 180]
+            .iter()
+            .flat_map(|d| d.to_le_bytes())
+            .collect::<Vec<_>>()
+            .as_slice()
+    );
     // Stored = value / scale: the first R cell (θh≈0, θd≈0.5°, φd≈0.5°).
     let first = f64::from_le_bytes(bytes[12..20].try_into().unwrap());
     assert!((first * (1.0 / 1500.0) - table.values()[0][0]).abs() < 1e-15);
@@ -70,9 +88,16 @@ fn round_trip(tag: &str, f: fn([f64; 3], [f64; 3]) -> [f64; 3]) -> f64 {
         let (ch, cd, cp) = cell_centre(ih, id, ip);
         let (ci, co) = half_diff_to_dirs(ch, cd, cp);
         let got = merl_lookup(&back, wi, wo);
-        let at_centre = if ci[2] > 0.0 && co[2] > 0.0 { f(ci, co) } else { [0.0; 3] };
+        let at_centre = if ci[2] > 0.0 && co[2] > 0.0 {
+            f(ci, co)
+        } else {
+            [0.0; 3]
+        };
         for k in 0..3 {
-            assert!((got[k] - at_centre[k]).abs() <= 1e-12 * at_centre[k].abs().max(1e-300), "{got:?} vs {at_centre:?}");
+            assert!(
+                (got[k] - at_centre[k]).abs() <= 1e-12 * at_centre[k].abs().max(1e-300),
+                "{got:?} vs {at_centre:?}"
+            );
         }
         // Approximate: away from grazing (both directions within 70° of the normal) within 1 %.
         if wi[2] < 0.342 || wo[2] < 0.342 {
@@ -84,7 +109,9 @@ fn round_trip(tag: &str, f: fn([f64; 3], [f64; 3]) -> [f64; 3]) -> f64 {
             worst = worst.max((got[k] - want[k]).abs() / want[k]);
         }
     }
-    eprintln!("MERL round trip ({tag}): max relative error {worst:.3e} over {n} random pairs within 70 deg of the normal");
+    eprintln!(
+        "MERL round trip ({tag}): max relative error {worst:.3e} over {n} random pairs within 70 deg of the normal"
+    );
     std::fs::remove_dir_all(dir).unwrap();
     worst
 }
@@ -101,8 +128,9 @@ fn merl_round_trip_of_a_sharp_lobe() {
     assert!(worst < 0.15, "{worst}");
 }
 
-/// A BRDF with Fresnel and the 1/(k1 + k2 − k1·k2) term varies with θd and φd too; MERL's nearest-cell
-/// lookup (1° cells in θd and φd) then errs by a few percent where Schlick's term is steep.
+/// A BRDF with Fresnel and the 1/(k1 + k2 − k1·k2) term varies with θd and φd too; MERL's
+/// nearest-cell lookup (1° cells in θd and φd) then errs by a few percent where Schlick's term is
+/// steep.
 #[test]
 fn merl_round_trip_of_a_dbrdf_like_brdf() {
     let worst = round_trip("merl-dbrdf", dbrdf_like);
@@ -111,7 +139,8 @@ fn merl_round_trip_of_a_dbrdf_like_brdf() {
 
 #[test]
 fn merl_layout_matches_brdfread() {
-    // The index order is [θh][θd][φd] with φd fastest, as BRDFRead.cpp's lookup_brdf_val computes it.
+    // The index order is [θh][θd][φd] with φd fastest, as BRDFRead.cpp's lookup_brdf_val computes
+    // it.
     let t = MerlTable::sample(|wi, wo| {
         let (th, _, td, pd) = half_diff_coords(wi, wo);
         [th, td, pd]
@@ -120,11 +149,18 @@ fn merl_layout_matches_brdfread() {
         let v = t.values()[(ih * 90 + id) * 180 + ip];
         let (th, td, pd) = cell_centre(ih, id, ip);
         if v != [0.0; 3] {
-            assert!((v[0] - th).abs() < 1e-9 && (v[1] - td).abs() < 1e-9 && (v[2] - pd).abs() < 1e-9, "{v:?}");
+            assert!(
+                (v[0] - th).abs() < 1e-9 && (v[1] - td).abs() < 1e-9 && (v[2] - pd).abs() < 1e-9,
+                "{v:?}"
+            );
         }
     }
     // Below-horizon cells are 0 and the closure is never called for them.
-    let (wi, wo) = half_diff_to_dirs(cell_centre(89, 89, 0).0, cell_centre(89, 89, 0).1, cell_centre(89, 89, 0).2);
+    let (wi, wo) = half_diff_to_dirs(
+        cell_centre(89, 89, 0).0,
+        cell_centre(89, 89, 0).1,
+        cell_centre(89, 89, 0).2,
+    );
     assert!(wi[2] <= 0.0 || wo[2] <= 0.0);
     assert_eq!(t.values()[(89 * 90 + 89) * 180], [0.0; 3]);
 }

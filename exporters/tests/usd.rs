@@ -1,5 +1,6 @@
-//! USD export checked by usd-core (`exporters/python/check_usd.py`): stage metadata, UsdShade wiring,
-//! binding, compliance checks, and every number of the lobe table against the material JSON.
+//! USD export checked by usd-core (`exporters/python/check_usd.py`): stage metadata, UsdShade
+//! wiring, binding, compliance checks, and every number of the lobe table against the material
+//! JSON.
 //!
 //! Inputs: the fixture material, with a scene mesh and without. Outputs: pass/fail.
 //! Invariants: fails in CI when Python/usd-core is missing.
@@ -11,7 +12,9 @@ use glint_exporters::{Exporter, UsdExporter};
 use std::process::Command;
 
 fn check(scene: bool, isotropic_fallback: bool) {
-    let Some(py) = python("pxr, numpy") else { return };
+    let Some(py) = python("pxr, numpy") else {
+        return;
+    };
     let tag = format!("usd-{scene}-{isotropic_fallback}");
     let dir = temp_dir(&tag);
     let mut desc = material("bunny-v2.final", 64);
@@ -20,7 +23,9 @@ fn check(scene: bool, isotropic_fallback: bool) {
     }
     let mut mesh = scene_mesh();
     mesh.camera = Some(scene_camera());
-    let files = UsdExporter.export(&desc, scene.then_some(&mesh), &dir).unwrap();
+    let files = UsdExporter
+        .export(&desc, scene.then_some(&mesh), &dir)
+        .unwrap();
     assert_eq!(files.len(), 2, "{files:?}");
     let mut json = desc.lobe_table_json();
     json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": desc.fallback.anisotropy });
@@ -31,9 +36,13 @@ fn check(scene: bool, isotropic_fallback: bool) {
     let json_path = dir.join("material.json");
     std::fs::write(&json_path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
     let script = workspace().join("exporters/python/check_usd.py");
-    let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("bunny-v2.final.usda")).arg(&json_path));
+    let (ok, out, err) = run(Command::new(&py)
+        .arg(&script)
+        .arg(dir.join("bunny-v2.final.usda"))
+        .arg(&json_path));
     assert!(ok, "check_usd.py failed:\n{out}\n{err}");
-    // Opening, resolving and checking the stage prints nothing (usd-core's diagnostics go to stderr).
+    // Opening, resolving and checking the stage prints nothing (usd-core's diagnostics go to
+    // stderr).
     assert!(err.trim().is_empty(), "usd-core printed on stderr:\n{err}");
     assert!(out.contains("OK"), "{out}");
     eprintln!("{}", out.trim());
@@ -53,7 +62,9 @@ fn usd_material_only_passes_usd_core() {
 /// The checker itself must catch a wrong number (so a pass means something).
 #[test]
 fn check_usd_catches_a_mismatch() {
-    let Some(py) = python("pxr, numpy") else { return };
+    let Some(py) = python("pxr, numpy") else {
+        return;
+    };
     let dir = temp_dir("usd-mismatch");
     let desc = material("m", 16);
     UsdExporter.export(&desc, None, &dir).unwrap();
@@ -62,9 +73,15 @@ fn check_usd_catches_a_mismatch() {
     let json_path = dir.join("material.json");
     std::fs::write(&json_path, json.to_string()).unwrap();
     let script = workspace().join("exporters/python/check_usd.py");
-    let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("m.usda")).arg(&json_path));
+    let (ok, out, err) = run(Command::new(&py)
+        .arg(&script)
+        .arg(dir.join("m.usda"))
+        .arg(&json_path));
     assert!(!ok, "a mismatch passed:\n{out}\n{err}");
-    assert!(out.contains("coefficients[1][5]") && out.trim().lines().count() == 1, "{out}{err}");
+    assert!(
+        out.contains("coefficients[1][5]") && out.trim().lines().count() == 1,
+        "{out}{err}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -72,14 +89,24 @@ fn check_usd_catches_a_mismatch() {
 /// lost, and one the stage has but the fallback does not.
 #[test]
 fn check_usd_catches_a_lost_or_wrong_anisotropy() {
-    let Some(py) = python("pxr, numpy") else { return };
+    let Some(py) = python("pxr, numpy") else {
+        return;
+    };
     let script = workspace().join("exporters/python/check_usd.py");
     let aniso = material("m", 16);
     let mut iso = aniso.clone();
     iso.fallback.anisotropy = None;
-    let (s, r) = aniso.fallback.anisotropy.expect("the fixture is anisotropic");
+    let (s, r) = aniso
+        .fallback
+        .anisotropy
+        .expect("the fixture is anisotropic");
     let cases = [
-        ("wrong", &aniso, serde_json::json!([s, r * (1.0 + 1e-4)]), "fallback.anisotropy[1]"),
+        (
+            "wrong",
+            &aniso,
+            serde_json::json!([s, r * (1.0 + 1e-4)]),
+            "fallback.anisotropy[1]",
+        ),
         ("lost", &iso, serde_json::json!([s, r]), "missing"),
         ("extra", &aniso, serde_json::Value::Null, "present"),
     ];
@@ -90,9 +117,15 @@ fn check_usd_catches_a_lost_or_wrong_anisotropy() {
         json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": anisotropy });
         let json_path = dir.join("material.json");
         std::fs::write(&json_path, json.to_string()).unwrap();
-        let (ok, out, err) = run(Command::new(&py).arg(&script).arg(dir.join("m.usda")).arg(&json_path));
+        let (ok, out, err) = run(Command::new(&py)
+            .arg(&script)
+            .arg(dir.join("m.usda"))
+            .arg(&json_path));
         assert!(!ok, "{tag}: a mismatch passed:\n{out}\n{err}");
-        assert!(out.contains(needle) && out.trim().lines().count() == 1, "{tag}: {out}{err}");
+        assert!(
+            out.contains(needle) && out.trim().lines().count() == 1,
+            "{tag}: {out}{err}"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

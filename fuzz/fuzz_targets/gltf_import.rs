@@ -1,6 +1,7 @@
 //! Fuzz target: arbitrary bytes as a glTF/GLB file → `glint::scene::import`. glint has no in-memory
-//! entry point (import resolves buffers relative to the file), so the bytes are written to a file in a
-//! private, otherwise empty folder per process; any URI the input names resolves there or is refused.
+//! entry point (import resolves buffers relative to the file), so the bytes are written to a file
+//! in a private, otherwise empty folder per process; any URI the input names resolves there or is
+//! refused.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -12,7 +13,8 @@ fn scratch() -> &'static PathBuf {
     DIR.get_or_init(|| {
         let dir = std::env::temp_dir().join(format!("glint-fuzz-gltf-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        // The harness's own scratch folder, not the code under test: without it nothing can be fuzzed.
+        // The harness's own scratch folder, not the code under test: without it nothing can be
+        // fuzzed.
         std::fs::create_dir_all(&dir).expect("scratch folder");
         dir
     })
@@ -25,7 +27,8 @@ fuzz_target!(|data: &[u8]| {
     // Writing the input to the harness's scratch folder (not the code under test) must work.
     std::fs::write(&path, data).expect("write the input");
     if let Ok(scene) = glint::scene::import(&path) {
-        // What every later stage relies on: indices in range, finite unit normals, finite positions.
+        // What every later stage relies on: indices in range, finite unit normals, finite
+        // positions.
         let n = scene.mesh.positions.len();
         assert_eq!(scene.mesh.normals.len(), n);
         for t in &scene.mesh.triangles {

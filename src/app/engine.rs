@@ -1,18 +1,16 @@
-//! The app's engine: one scene under one environment, its (growing) bake, the wgpu preview, and fits
-//! that reuse everything a stroke does not change.
+//! The app's engine: one scene under one environment, its (growing) bake, the wgpu preview, and
+//! fits that reuse everything a stroke does not change.
 //!
 //! Inputs: the scene, the environment, cuts as the bake delivers them (first the vertices the first
 //! view sees, then all), a [`Document`] per fit, a view per frame, and which renderer draws the
 //! preview ([`PreviewChoice`]: the wgpu preview on a hardware adapter, the CPU PRT frame where the
 //! only adapter is a software rasteriser, which is 40-60× slower than the CPU frame for the same
-//! picture). Outputs: preview frames (linear
-//! [`Image`]s with the environment behind the object), fitted [`Material`]s with their p(h) table and
-//! timings, exported files.
-//! Invariants: calls only the library's public stage functions (the fitting context, tabulation, the
-//! GPU preview, the exporters); fits run in one [`FitSession`], the type `glint fit` uses, so a
-//! view's transfer is computed once per (view, rotation, σ, layout, F0) and kept, each solve is
-//! warm-started from the previous fit's active sets, and the same strokes give the same material as
-//! `glint fit`.
+//! picture). Outputs: preview frames (linear [`Image`]s with the environment behind the object),
+//! fitted [`Material`]s with their p(h) table and timings, exported files. Invariants: calls only
+//! the library's public stage functions (the fitting context, tabulation, the GPU preview, the
+//! exporters); fits run in one [`FitSession`], the type `glint fit` uses, so a view's transfer is
+//! computed once per (view, rotation, σ, layout, F0) and kept, each solve is warm-started from the
+//! previous fit's active sets, and the same strokes give the same material as `glint fit`.
 
 use super::AppError;
 use super::state::Document;
@@ -43,7 +41,8 @@ pub struct FitTimings {
     pub solve_secs: f64,
     /// The p(h) table and its upload.
     pub table_secs: f64,
-    /// The preview frame (wgpu: shade, raster, readback; or the CPU PRT frame), background included.
+    /// The preview frame (wgpu: shade, raster, readback; or the CPU PRT frame), background
+    /// included.
     pub render_secs: f64,
 }
 
@@ -75,14 +74,25 @@ impl std::str::FromStr for PreviewChoice {
 /// The settings the preview renderers use: the mesh's own vertices are shaded (the wgpu preview's
 /// compute pass shades vertices; the CPU frame does the same so that the two show the same picture,
 /// `tests/gpu.rs`). The wgpu preview takes the default partition (8°); the CPU preview uses 16°
-/// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test render
-/// diagnose`, PDS=8,16: bunny 3.65 / 3.68 %, teapot 12.83 / 12.99 %; dragon_100k at 640×480: 0.30 s / 0.15 s, `cargo bench --bench render`)
-/// and clips nodes of up to 64 leaves astride a horizon whole ([`CPU_PREVIEW_HORIZON_LEAVES`]).
+/// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test
+/// render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %, teapot 12.83 / 12.99 %; dragon_100k at 640×480:
+/// 0.30 s / 0.15 s, `cargo bench --bench render`) and clips nodes of up to 64 leaves astride a
+/// horizon whole ([`CPU_PREVIEW_HORIZON_LEAVES`]).
 fn preview_settings(gpu: bool) -> PrtSettings {
     if gpu {
-        return PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() };
+        return PrtSettings {
+            max_edge_px: 0.0,
+            per_pixel: false,
+            ..PrtSettings::default()
+        };
     }
-    PrtSettings { max_edge_px: 0.0, per_pixel: false, partition_deg: CPU_PREVIEW_PARTITION_DEG, horizon_leaves: CPU_PREVIEW_HORIZON_LEAVES, ..PrtSettings::default() }
+    PrtSettings {
+        max_edge_px: 0.0,
+        per_pixel: false,
+        partition_deg: CPU_PREVIEW_PARTITION_DEG,
+        horizon_leaves: CPU_PREVIEW_HORIZON_LEAVES,
+        ..PrtSettings::default()
+    }
 }
 
 /// The CPU preview's horizon clip ([`PrtSettings::horizon_leaves`]): nodes of ≤ 64 leaves (~11°)
@@ -103,10 +113,14 @@ pub struct FitResult {
     pub table_image: Option<Image>,
 }
 
-/// The refined mesh and its tangents, the cuts' mesh (taken field by field, so that a caller can hold
-/// it while it mutates the engine's other fields).
+/// The refined mesh and its tangents, the cuts' mesh (taken field by field, so that a caller can
+/// hold it while it mutates the engine's other fields).
 type Refined = Option<(Arc<crate::scene::Mesh>, Option<Vec<Vec4>>)>;
-fn baked_mesh<'a>(scene: &'a Scene, tangents: &'a Option<Vec<Vec4>>, refined: &'a Refined) -> (&'a crate::scene::Mesh, Option<&'a [Vec4]>) {
+fn baked_mesh<'a>(
+    scene: &'a Scene,
+    tangents: &'a Option<Vec<Vec4>>,
+    refined: &'a Refined,
+) -> (&'a crate::scene::Mesh, Option<&'a [Vec4]>) {
     match refined {
         Some((m, t)) => (m, t.as_deref()),
         None => (&scene.mesh, tangents.as_deref()),
@@ -132,17 +146,18 @@ pub struct Engine {
     /// Why, in words (shown in the side panel).
     preview_reason: String,
     gpu: Option<GpuPreview>,
-    /// The CPU preview's per-vertex light for the current rotation and cuts (frames after a new view
-    /// or a new fit evaluate only the BRDF); emptied when the light or the cuts change.
+    /// The CPU preview's per-vertex light for the current rotation and cuts (frames after a new
+    /// view or a new fit evaluate only the BRDF); emptied when the light or the cuts change.
     vertex_light: VertexLight,
     /// CPU frames drawn with the current light (and cuts): the first is shaded directly, later ones
     /// fill and read `vertex_light`.
     frames_with_light: u32,
-    /// The CPU preview's shading mesh of the last view (camera and size): kept while only the light or
-    /// the material changes; dropped with the cuts.
+    /// The CPU preview's shading mesh of the last view (camera and size): kept while only the light
+    /// or the material changes; dropped with the cuts.
     view_mesh: Option<(Camera, [u32; 2], ShadingMesh)>,
     light: Option<(f64, LightSums)>,
-    /// The environment prepared for light sums (kept across rotations; dropped with the environment).
+    /// The environment prepared for light sums (kept across rotations; dropped with the
+    /// environment).
     light_source: Option<crate::light::LightSource>,
     /// Lobes, energy rows, transfers and the warm start, kept across fits.
     session: FitSession,
@@ -168,11 +183,20 @@ impl Engine {
         let software = ctx.info.device_type == wgpu::DeviceType::Cpu;
         let threads = rayon::current_num_threads();
         let (use_gpu, preview_reason) = match preview {
-            PreviewChoice::Gpu => (true, format!("wgpu on {} (chosen with --preview gpu)", ctx.describe())),
-            PreviewChoice::Cpu => (false, format!("the CPU PRT frame on {threads} threads (chosen with --preview cpu)")),
+            PreviewChoice::Gpu => (
+                true,
+                format!("wgpu on {} (chosen with --preview gpu)", ctx.describe()),
+            ),
+            PreviewChoice::Cpu => (
+                false,
+                format!("the CPU PRT frame on {threads} threads (chosen with --preview cpu)"),
+            ),
             PreviewChoice::Auto if software => (
                 false,
-                format!("the CPU PRT frame on {threads} threads: the only adapter, {}, is a software rasteriser", ctx.describe()),
+                format!(
+                    "the CPU PRT frame on {threads} threads: the only adapter, {}, is a software rasteriser",
+                    ctx.describe()
+                ),
             ),
             PreviewChoice::Auto => (true, format!("wgpu on {}", ctx.describe())),
         };
@@ -224,10 +248,10 @@ impl Engine {
         self.material.as_ref()
     }
 
-    /// New cuts from the bake (partial: unbaked vertices have empty cuts and render black). Rebuilds
-    /// the GPU buffers (when the GPU draws the preview) and keeps the cached transfers (a baked
-    /// vertex's cut never changes) — unless `refined` brings the refined mesh (and its tangents) the
-    /// cuts now belong to: then the transfers are dropped and recomputed on it.
+    /// New cuts from the bake (partial: unbaked vertices have empty cuts and render black).
+    /// Rebuilds the GPU buffers (when the GPU draws the preview) and keeps the cached transfers (a
+    /// baked vertex's cut never changes) — unless `refined` brings the refined mesh (and its
+    /// tangents) the cuts now belong to: then the transfers are dropped and recomputed on it.
     pub fn set_bake(&mut self, cuts: Cuts, refined: Refined) -> Result<(), AppError> {
         if let Some(r) = refined {
             self.refined = Some(r);
@@ -235,10 +259,21 @@ impl Engine {
         }
         let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
         if cuts.vertex_count() != mesh.positions.len() {
-            return Err(AppError::Stage(format!("the bake delivered {} cuts for a mesh of {} vertices", cuts.vertex_count(), mesh.positions.len())));
+            return Err(AppError::Stage(format!(
+                "the bake delivered {} cuts for a mesh of {} vertices",
+                cuts.vertex_count(),
+                mesh.positions.len()
+            )));
         }
         if self.use_gpu {
-            match GpuPreview::new(&self.ctx, mesh, &cuts, &self.tree, tangents, preview_settings(true)) {
+            match GpuPreview::new(
+                &self.ctx,
+                mesh,
+                &cuts,
+                &self.tree,
+                tangents,
+                preview_settings(true),
+            ) {
                 Ok(mut gpu) => {
                     if let Some((_, light)) = &self.light {
                         gpu.set_light(light, &self.tree)?;
@@ -248,7 +283,8 @@ impl Engine {
                     }
                     self.gpu = Some(gpu);
                 }
-                // A bake this adapter cannot shade (its limits): the CPU frame draws it, and says why.
+                // A bake this adapter cannot shade (its limits): the CPU frame draws it, and says
+                // why.
                 Err(e @ crate::gpu::GpuError::Limit { .. }) => {
                     let threads = rayon::current_num_threads();
                     self.use_gpu = false;
@@ -267,12 +303,16 @@ impl Engine {
 
     /// Vertices of the mesh the cuts belong to (the refined mesh once the bake has refined it).
     pub fn baked_vertices(&self) -> usize {
-        baked_mesh(&self.scene, &self.tangents, &self.refined).0.positions.len()
+        baked_mesh(&self.scene, &self.tangents, &self.refined)
+            .0
+            .positions
+            .len()
     }
 
     /// Replaces the environment (the bake stays: visibility does not depend on the light).
     pub fn set_env(&mut self, path: &Path) -> Result<(), AppError> {
-        self.env = crate::env::load(path).map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;
+        self.env = crate::env::load(path)
+            .map_err(|e| AppError::Stage(format!("{}: {e}", path.display())))?;
         self.env_path = path.to_path_buf();
         self.light = None;
         self.light_source = None;
@@ -285,7 +325,9 @@ impl Engine {
         if self.light.as_ref().is_some_and(|(r, _)| *r == rotation) {
             return Ok(());
         }
-        let source = self.light_source.get_or_insert_with(|| crate::light::LightSource::new(&self.env));
+        let source = self
+            .light_source
+            .get_or_insert_with(|| crate::light::LightSource::new(&self.env));
         let light = LightSums::from_source(source, &self.set, &self.tree, rotation);
         if let Some(gpu) = &mut self.gpu {
             gpu.set_light(&light, &self.tree)?;
@@ -301,35 +343,67 @@ impl Engine {
         camera_for(&self.scene, view, size).map_err(|e| AppError::Stage(e.to_string()))
     }
 
-    /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and the
-    /// view's transfer. Returns the seconds it took.
-    pub fn prepare(&mut self, doc: &Document, view: &ViewSpec, size: [u32; 2]) -> Result<f64, AppError> {
+    /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and
+    /// the view's transfer. Returns the seconds it took.
+    pub fn prepare(
+        &mut self,
+        doc: &Document,
+        view: &ViewSpec,
+        size: [u32; 2],
+    ) -> Result<f64, AppError> {
         let start = Instant::now();
         self.ensure_light(doc.settings.env_rotation_deg)?;
         let settings = doc.settings.fit_settings(self.anisotropic);
-        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
-        let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a fit"))?;
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
+            "the bake has not delivered any cuts yet",
+        ))?;
+        let (_, light) = self
+            .light
+            .as_ref()
+            .ok_or(AppError::NotReady("the light comes before a fit"))?;
         let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
-        let inputs = FitInputs { scene: &self.scene, mesh, tangents, anisotropic: self.anisotropic, cuts, tree: &self.tree, light };
-        self.session.prepare(&inputs, view, size, &settings).map_err(|e| AppError::Stage(e.to_string()))?;
+        let inputs = FitInputs {
+            scene: &self.scene,
+            mesh,
+            tangents,
+            anisotropic: self.anisotropic,
+            cuts,
+            tree: &self.tree,
+            light,
+        };
+        self.session
+            .prepare(&inputs, view, size, &settings)
+            .map_err(|e| AppError::Stage(e.to_string()))?;
         Ok(start.elapsed().as_secs_f64())
     }
 
-    /// A preview frame of the current material in a view (the wgpu preview or the CPU PRT frame, see
-    /// [`PreviewChoice`]; both shade the mesh's vertices and interpolate).
-    pub fn render(&mut self, view: &ViewSpec, size: [u32; 2], rotation_deg: f64) -> Result<Image, AppError> {
+    /// A preview frame of the current material in a view (the wgpu preview or the CPU PRT frame,
+    /// see [`PreviewChoice`]; both shade the mesh's vertices and interpolate).
+    pub fn render(
+        &mut self,
+        view: &ViewSpec,
+        size: [u32; 2],
+        rotation_deg: f64,
+    ) -> Result<Image, AppError> {
         self.ensure_light(rotation_deg)?;
         let camera = self.camera(view, size)?;
         let mut image = if self.use_gpu {
-            let gpu = self.gpu.as_mut().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
+            let gpu = self.gpu.as_mut().ok_or(AppError::NotReady(
+                "the bake has not delivered any cuts yet",
+            ))?;
             if self.shown.is_none() {
                 gpu.set_material([0.5; 3], 0.04, None)?;
                 self.shown = Some(([0.5; 3], 0.04, None));
             }
             gpu.render(&camera, size[0], size[1])?
         } else {
-            let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
-            let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a frame"))?;
+            let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
+                "the bake has not delivered any cuts yet",
+            ))?;
+            let (_, light) = self
+                .light
+                .as_ref()
+                .ok_or(AppError::NotReady("the light comes before a frame"))?;
             let (rho_d, f0, table) = self.shown.get_or_insert(([0.5; 3], 0.04, None));
             let specular = match table.as_ref() {
                 Some(t) => Specular::Table(t),
@@ -337,19 +411,41 @@ impl Engine {
             };
             let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
             let prt = Prt::new(mesh, cuts, &self.tree, tangents, preview_settings(false));
-            let shading = Shading { rho_d: *rho_d, f0: *f0, specular };
-            if !self.view_mesh.as_ref().is_some_and(|(c, s, _)| *c == camera && *s == size) {
+            let shading = Shading {
+                rho_d: *rho_d,
+                f0: *f0,
+                specular,
+            };
+            if !self
+                .view_mesh
+                .as_ref()
+                .is_some_and(|(c, s, _)| *c == camera && *s == size)
+            {
                 self.view_mesh = None;
             }
-            let (_, _, sm) = self.view_mesh.get_or_insert_with(|| (camera.clone(), size, prt.shading_mesh(&camera, size[0], size[1])));
+            let (_, _, sm) = self.view_mesh.get_or_insert_with(|| {
+                (
+                    camera.clone(),
+                    size,
+                    prt.shading_mesh(&camera, size[0], size[1]),
+                )
+            });
             let image = if self.frames_with_light == 0 {
                 // The first frame with a new light (a rotation being dragged) is shaded directly:
-                // filling the per-vertex light cache on the way costs more than it saves on one frame
-                // (dragon_100k at 640×480: 0.10 s against 0.13 s, light sums included). The next
-                // frame with this light fills it, for the views and fits that follow.
+                // filling the per-vertex light cache on the way costs more than it saves on one
+                // frame (dragon_100k at 640×480: 0.10 s against 0.13 s, light sums included). The
+                // next frame with this light fills it, for the views and fits that follow.
                 prt.render_mesh(sm, light, &camera, size[0], size[1], &shading)
             } else {
-                prt.render_cached_mesh(&mut self.vertex_light, sm, light, &camera, size[0], size[1], &shading)
+                prt.render_cached_mesh(
+                    &mut self.vertex_light,
+                    sm,
+                    light,
+                    &camera,
+                    size[0],
+                    size[1],
+                    &shading,
+                )
             };
             self.frames_with_light += 1;
             image
@@ -364,19 +460,45 @@ impl Engine {
         s.validate().map_err(AppError::Settings)?;
         self.ensure_light(s.env_rotation_deg)?;
         let settings = s.fit_settings(self.anisotropic);
-        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady("the bake has not delivered any cuts yet"))?;
-        let (_, light) = self.light.as_ref().ok_or(AppError::NotReady("the light comes before a fit"))?;
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
+            "the bake has not delivered any cuts yet",
+        ))?;
+        let (_, light) = self
+            .light
+            .as_ref()
+            .ok_or(AppError::NotReady("the light comes before a fit"))?;
         let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
-        let inputs = FitInputs { scene: &self.scene, mesh, tangents, anisotropic: self.anisotropic, cuts, tree: &self.tree, light };
-        let outcome = self.session.fit(&inputs, &doc.fit_views(), &settings).map_err(|e| AppError::Stage(e.to_string()))?;
+        let inputs = FitInputs {
+            scene: &self.scene,
+            mesh,
+            tangents,
+            anisotropic: self.anisotropic,
+            cuts,
+            tree: &self.tree,
+            light,
+        };
+        let outcome = self
+            .session
+            .fit(&inputs, &doc.fit_views(), &settings)
+            .map_err(|e| AppError::Stage(e.to_string()))?;
         let material = outcome.material;
-        let mut timings = FitTimings { transfer_secs: outcome.transfer_seconds, solve_secs: material.fit.solve_seconds, ..FitTimings::default() };
-        let lobes = material.lobes().map_err(|e| AppError::Stage(e.to_string()))?;
+        let mut timings = FitTimings {
+            transfer_secs: outcome.transfer_seconds,
+            solve_secs: material.fit.solve_seconds,
+            ..FitTimings::default()
+        };
+        let lobes = material
+            .lobes()
+            .map_err(|e| AppError::Stage(e.to_string()))?;
         let table_start = Instant::now();
         let specular = material.coefficients.iter().flatten().any(|c| *c > 0.0);
         let table = specular.then(|| {
             let c = &material.coefficients;
-            PhTable::build(&lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lambda()))
+            PhTable::build(
+                &lobes,
+                [&c[0], &c[1], &c[2]],
+                table::default_resolution(lobes.lambda()),
+            )
         });
         if let Some(gpu) = &mut self.gpu {
             gpu.set_material(s.rho_d, s.f0, table.as_ref())?;
@@ -392,17 +514,38 @@ impl Engine {
         self.shown = Some((s.rho_d, s.f0, table));
         timings.table_secs = table_start.elapsed().as_secs_f64();
         self.material = Some(material.clone());
-        Ok(FitResult { material, timings, table_image })
+        Ok(FitResult {
+            material,
+            timings,
+            table_image,
+        })
     }
 
-    /// Writes every export format of the last material into `dir` (the scene's mesh in glTF and USD).
+    /// Writes every export format of the last material into `dir` (the scene's mesh in glTF and
+    /// USD).
     pub fn export(&self, dir: &Path, name: &str) -> Result<Vec<PathBuf>, AppError> {
-        let material = self.material.as_ref().ok_or(AppError::NotReady("nothing is fitted yet"))?;
+        let material = self
+            .material
+            .as_ref()
+            .ok_or(AppError::NotReady("nothing is fitted yet"))?;
         let mut provenance = Provenance::new(Tool::App, material);
-        provenance.scene_file(&self.scene.source).env_file(&self.env_path).env_rotation_deg(self.light.as_ref().map_or(0.0, |(r, _)| r.to_degrees()));
-        let desc = crate::export::material_desc(material, name, crate::export::EXPORT_TABLE_RESOLUTION, provenance).map_err(|e| AppError::Stage(e.to_string()))?;
+        provenance
+            .scene_file(&self.scene.source)
+            .env_file(&self.env_path)
+            .env_rotation_deg(self.light.as_ref().map_or(0.0, |(r, _)| r.to_degrees()));
+        let desc = crate::export::material_desc(
+            material,
+            name,
+            crate::export::EXPORT_TABLE_RESOLUTION,
+            provenance,
+        )
+        .map_err(|e| AppError::Stage(e.to_string()))?;
         let mesh = crate::export::scene_mesh(&self.scene.mesh, self.tangents.as_deref());
-        std::fs::create_dir_all(dir).map_err(|e| AppError::Io { path: dir.to_path_buf(), reason: e.to_string() })?;
-        glint_exporters::export_all(&desc, Some(&mesh), dir, &[]).map_err(|e| AppError::Stage(e.to_string()))
+        std::fs::create_dir_all(dir).map_err(|e| AppError::Io {
+            path: dir.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        glint_exporters::export_all(&desc, Some(&mesh), dir, &[])
+            .map_err(|e| AppError::Stage(e.to_string()))
     }
 }

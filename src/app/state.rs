@@ -3,10 +3,11 @@
 //!
 //! Inputs: strokes the user paints (in full-resolution view pixels), settings from the side panel,
 //! session JSON. Outputs: the stroke list in the `glint fit` stroke format
-//! ([`crate::fit::strokes::ViewStrokes`]), [`crate::fit::run::FitSettings`]-like values, session JSON.
-//! Invariants: pure (no IO, no GPU, no threads): unit-tested without a display; strokes painted in the
-//! same view (equal [`ViewSpec`] and image size) go to the same view entry; the history always holds
-//! the current document at `at`, and a new edit drops what could have been redone.
+//! ([`crate::fit::strokes::ViewStrokes`]), [`crate::fit::run::FitSettings`]-like values, session
+//! JSON. Invariants: pure (no IO, no GPU, no threads): unit-tested without a display; strokes
+//! painted in the same view (equal [`ViewSpec`] and image size) go to the same view entry; the
+//! history always holds the current document at `at`, and a new edit drops what could have been
+//! redone.
 
 use crate::fit::strokes::{self, Mode, Stroke, ViewSpec, ViewStrokes};
 use crate::sphere::{LobeLayout, srbf};
@@ -21,8 +22,8 @@ pub enum BrushMode {
     Paint,
     /// Target = S × the value before the stroke.
     Scale,
-    /// Target = the diffuse rendering (the stroke format's `erase`): no highlight there, even where an
-    /// earlier stroke painted one.
+    /// Target = the diffuse rendering (the stroke format's `erase`): no highlight there, even where
+    /// an earlier stroke painted one.
     Erase,
 }
 
@@ -44,7 +45,14 @@ pub struct Brush {
 
 impl Default for Brush {
     fn default() -> Self {
-        Self { mode: BrushMode::Paint, color: [1.0, 0.96, 0.9], intensity: 2.5, radius_px: 22.0, kappa_per_px: 0.04, scale: 2.0 }
+        Self {
+            mode: BrushMode::Paint,
+            color: [1.0, 0.96, 0.9],
+            intensity: 2.5,
+            radius_px: 22.0,
+            kappa_per_px: 0.04,
+            scale: 2.0,
+        }
     }
 }
 
@@ -57,7 +65,14 @@ impl Brush {
             BrushMode::Erase => (Mode::Erase, 1.0),
         };
         let color = self.color.map(|c| c as f64 * self.intensity as f64);
-        Stroke { points, mode, color, scale, radius: self.radius_px, kappa: self.kappa_per_px }
+        Stroke {
+            points,
+            mode,
+            color,
+            scale,
+            radius: self.radius_px,
+            kappa: self.kappa_per_px,
+        }
     }
 }
 
@@ -117,17 +132,25 @@ impl Settings {
             let n = ((self.lobe_count as f64 / 3.0).sqrt().round() as usize).max(2);
             LobeLayout::Hemicube { n }
         } else {
-            LobeLayout::Isotropic { count: self.lobe_count.max(1) }
+            LobeLayout::Isotropic {
+                count: self.lobe_count.max(1),
+            }
         }
     }
 
     /// One-line reason when a setting cannot be fitted.
     pub fn validate(&self) -> Result<(), String> {
         if self.rho_d.iter().any(|r| !(0.0..=1.0).contains(r)) || !(0.0..=1.0).contains(&self.f0) {
-            return Err(format!("ρd {:?} and F0 {} must lie in [0, 1]", self.rho_d, self.f0));
+            return Err(format!(
+                "ρd {:?} and F0 {} must lie in [0, 1]",
+                self.rho_d, self.f0
+            ));
         }
         if !(self.keep_weight.is_finite() && self.keep_weight >= 0.0) {
-            return Err(format!("keep weight {} must be finite and ≥ 0", self.keep_weight));
+            return Err(format!(
+                "keep weight {} must be finite and ≥ 0",
+                self.keep_weight
+            ));
         }
         if !(self.sigma.is_finite() && self.sigma > 0.0 && self.sigma < 1.0) {
             return Err(format!("σ {} must lie in (0, 1) radians", self.sigma));
@@ -152,7 +175,10 @@ pub struct Document {
 
 impl Default for Document {
     fn default() -> Self {
-        Self { settings: Settings::default(), views: Vec::new() }
+        Self {
+            settings: Settings::default(),
+            views: Vec::new(),
+        }
     }
 }
 
@@ -160,9 +186,18 @@ impl Document {
     /// Appends a stroke to the view's entry (made if new).
     pub fn add_stroke(&mut self, view: ViewSpec, image_size: [u32; 2], stroke: Stroke) {
         let keep_weight = self.settings.keep_weight;
-        match self.views.iter_mut().find(|v| v.view == view && v.image_size == image_size) {
+        match self
+            .views
+            .iter_mut()
+            .find(|v| v.view == view && v.image_size == image_size)
+        {
             Some(v) => v.strokes.push(stroke),
-            None => self.views.push(ViewStrokes { view, image_size, keep_weight, strokes: vec![stroke] }),
+            None => self.views.push(ViewStrokes {
+                view,
+                image_size,
+                keep_weight,
+                strokes: vec![stroke],
+            }),
         }
     }
 
@@ -173,7 +208,13 @@ impl Document {
 
     /// The stroke list as `glint fit` reads it, with the current keep weight in every view.
     pub fn fit_views(&self) -> Vec<ViewStrokes> {
-        self.views.iter().map(|v| ViewStrokes { keep_weight: self.settings.keep_weight, ..v.clone() }).collect()
+        self.views
+            .iter()
+            .map(|v| ViewStrokes {
+                keep_weight: self.settings.keep_weight,
+                ..v.clone()
+            })
+            .collect()
     }
 
     /// The stroke file (JSON list of views), as `glint fit --strokes` reads it.
@@ -192,7 +233,10 @@ pub struct History {
 impl History {
     /// A history holding `doc` only.
     pub fn new(doc: Document) -> Self {
-        Self { states: vec![doc], at: 0 }
+        Self {
+            states: vec![doc],
+            at: 0,
+        }
     }
 
     /// The current document.
@@ -200,7 +244,8 @@ impl History {
         &self.states[self.at]
     }
 
-    /// Records `doc` as the new current state (drops the redo branch); equal states are not recorded.
+    /// Records `doc` as the new current state (drops the redo branch); equal states are not
+    /// recorded.
     pub fn push(&mut self, doc: Document) {
         if *self.current() == doc {
             return;
@@ -254,7 +299,13 @@ pub struct Session {
 impl Session {
     /// The session of a document.
     pub fn new(scene: PathBuf, env: PathBuf, doc: &Document) -> Self {
-        Self { glint_session: SESSION_VERSION, scene, env, settings: doc.settings.clone(), strokes: doc.fit_views() }
+        Self {
+            glint_session: SESSION_VERSION,
+            scene,
+            env,
+            settings: doc.settings.clone(),
+            strokes: doc.fit_views(),
+        }
     }
 
     pub fn to_json(&self) -> String {
@@ -263,9 +314,13 @@ impl Session {
 
     /// Parses and validates a session (strokes as strictly as `glint fit` reads them).
     pub fn parse(text: &str) -> Result<Self, String> {
-        let session: Session = serde_json::from_str(text).map_err(|e| format!("not a glint session: {e}"))?;
+        let session: Session =
+            serde_json::from_str(text).map_err(|e| format!("not a glint session: {e}"))?;
         if session.glint_session != SESSION_VERSION {
-            return Err(format!("session version {} is not {SESSION_VERSION}", session.glint_session));
+            return Err(format!(
+                "session version {} is not {SESSION_VERSION}",
+                session.glint_session
+            ));
         }
         session.settings.validate()?;
         let strokes = serde_json::to_string(&session.strokes).map_err(|e| e.to_string())?;
@@ -275,7 +330,10 @@ impl Session {
 
     /// The document it restores.
     pub fn document(&self) -> Document {
-        Document { settings: self.settings.clone(), views: self.strokes.clone() }
+        Document {
+            settings: self.settings.clone(),
+            views: self.strokes.clone(),
+        }
     }
 }
 
@@ -291,7 +349,9 @@ mod tests {
     fn strokes_of_one_view_share_an_entry_and_new_views_add_one() {
         let mut doc = Document::default();
         let named = ViewSpec::Name("default".into());
-        let orbit = ViewSpec::Orbit { orbit: [30.0, 10.0, 3.0] };
+        let orbit = ViewSpec::Orbit {
+            orbit: [30.0, 10.0, 3.0],
+        };
         doc.add_stroke(named.clone(), [640, 480], dot(1.0));
         doc.add_stroke(named.clone(), [640, 480], dot(2.0));
         doc.add_stroke(orbit.clone(), [640, 480], dot(3.0));
@@ -306,10 +366,17 @@ mod tests {
 
     #[test]
     fn brush_modes_map_to_the_stroke_format() {
-        let mut b = Brush { intensity: -2.0, ..Brush::default() };
+        let mut b = Brush {
+            intensity: -2.0,
+            ..Brush::default()
+        };
         let s = b.stroke(vec![[0.0, 0.0]]);
         assert_eq!(s.mode, Mode::Paint);
-        assert!((s.color[0] + 2.0).abs() < 1e-6, "negative HDR paint is kept: {:?}", s.color);
+        assert!(
+            (s.color[0] + 2.0).abs() < 1e-6,
+            "negative HDR paint is kept: {:?}",
+            s.color
+        );
         b.mode = BrushMode::Erase;
         let s = b.stroke(vec![[0.0, 0.0]]);
         assert_eq!(s.mode, Mode::Erase);
@@ -350,11 +417,17 @@ mod tests {
         assert_eq!(back, s);
         assert_eq!(back.document(), doc);
         assert!(Session::parse("{").is_err());
-        let bad = s.to_json().replace("\"glint_session\": 1", "\"glint_session\": 9");
+        let bad = s
+            .to_json()
+            .replace("\"glint_session\": 1", "\"glint_session\": 9");
         assert!(Session::parse(&bad).unwrap_err().contains("version"));
         let mut worse = s.clone();
         worse.strokes[0].strokes[0].radius = -1.0;
-        assert!(Session::parse(&worse.to_json()).unwrap_err().contains("radius"));
+        assert!(
+            Session::parse(&worse.to_json())
+                .unwrap_err()
+                .contains("radius")
+        );
         let mut odd = s;
         odd.settings.f0 = 2.0;
         assert!(Session::parse(&odd.to_json()).is_err());
@@ -362,7 +435,10 @@ mod tests {
 
     #[test]
     fn layouts_follow_the_lobe_count() {
-        let s = Settings { lobe_count: 147, ..Settings::default() };
+        let s = Settings {
+            lobe_count: 147,
+            ..Settings::default()
+        };
         assert_eq!(s.layout(true), LobeLayout::PAPER);
         assert_eq!(s.layout(false), LobeLayout::Isotropic { count: 147 });
     }

@@ -1,13 +1,13 @@
-//! The egui app: the preview in a viewport (left-drag paints, right-drag orbits, the wheel zooms) and
-//! a side panel with the brush, the material settings, the environment, the fit statistics, a view
-//! of p(h), undo/redo, sessions and export.
+//! The egui app: the preview in a viewport (left-drag paints, right-drag orbits, the wheel zooms)
+//! and a side panel with the brush, the material settings, the environment, the fit statistics, a
+//! view of p(h), undo/redo, sessions and export.
 //!
 //! Inputs: egui input, [`super::worker::Event`]s. Outputs: [`super::worker::Command`]s, autosaved
 //! sessions, what egui draws. Invariants: the UI thread only sends commands and uploads finished
 //! images (never bakes, fits or shades); painting starts only once the first view's vertices are
-//! baked; a stroke's points are pixels of the view's full-resolution image (origin top-left), mapped
-//! from the widget rectangle the image is drawn in; every settled edit (stroke released, slider let
-//! go, undo, redo, session loaded) is one history step and one fit.
+//! baked; a stroke's points are pixels of the view's full-resolution image (origin top-left),
+//! mapped from the widget rectangle the image is drawn in; every settled edit (stroke released,
+//! slider let go, undo, redo, session loaded) is one history step and one fit.
 
 use super::engine::{FitResult, PreviewChoice};
 use super::state::{BrushMode, Document, History, Session};
@@ -20,7 +20,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 /// How the app is started.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct AppOptions {
     pub scene: PathBuf,
     pub env: PathBuf,
@@ -32,6 +32,55 @@ pub struct AppOptions {
     pub replay: Vec<ViewStrokes>,
     /// Which renderer draws the preview (`--preview`).
     pub preview: PreviewChoice,
+}
+
+impl AppOptions {
+    /// Options from files, checked before a window opens: the scene and the map must exist, a replay
+    /// must parse as strokes and a session as a session.
+    pub fn from_files(
+        scene: PathBuf,
+        env: PathBuf,
+        replay: Option<&std::path::Path>,
+        session: Option<PathBuf>,
+        autosave: Option<PathBuf>,
+        preview: PreviewChoice,
+    ) -> Result<Self, super::AppError> {
+        for (what, p) in [("scene", &scene), ("environment map", &env)] {
+            if !p.is_file() {
+                return Err(super::AppError::Io {
+                    path: p.clone(),
+                    reason: format!("the {what} does not exist"),
+                });
+            }
+        }
+        let read = |p: &std::path::Path| {
+            std::fs::read_to_string(p).map_err(|e| super::AppError::Io {
+                path: p.to_path_buf(),
+                reason: format!("cannot read it: {e}"),
+            })
+        };
+        let replay = match replay {
+            Some(p) => crate::fit::strokes::parse(&read(p)?).map_err(|e| super::AppError::Io {
+                path: p.to_path_buf(),
+                reason: e.to_string(),
+            })?,
+            None => Vec::new(),
+        };
+        if let Some(s) = &session {
+            super::state::Session::parse(&read(s)?).map_err(|e| super::AppError::Io {
+                path: s.clone(),
+                reason: e.to_string(),
+            })?;
+        }
+        Ok(Self {
+            scene,
+            env,
+            autosave,
+            session,
+            replay,
+            preview,
+        })
+    }
 }
 
 /// What the worker said about the inputs.
@@ -87,10 +136,17 @@ pub struct GlintApp {
 /// The environment maps (.exr, .hdr, any case) in a folder, sorted by name; empty when it cannot be
 /// read.
 pub fn env_maps_in(folder: &std::path::Path) -> Vec<PathBuf> {
-    let Ok(entries) = std::fs::read_dir(folder) else { return Vec::new() };
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return Vec::new();
+    };
     let mut maps: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && p.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr")))
+        .filter(|p| {
+            p.is_file()
+                && p.extension()
+                    .and_then(|e| e.to_str())
+                    .is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("hdr"))
+        })
         .collect();
     maps.sort();
     maps
@@ -101,7 +157,11 @@ pub fn tone_map(image: &Image, exposure: f32) -> egui::ColorImage {
     let curve = |x: f32| {
         let x = (x * exposure).max(0.0);
         let y = ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0);
-        let s = if y <= 0.003_130_8 { 12.92 * y } else { 1.055 * y.powf(1.0 / 2.4) - 0.055 };
+        let s = if y <= 0.003_130_8 {
+            12.92 * y
+        } else {
+            1.055 * y.powf(1.0 / 2.4) - 0.055
+        };
         (s * 255.0 + 0.5) as u8
     };
     let rgb: Vec<u8> = image.pixels.iter().flat_map(|p| p.map(curve)).collect();
@@ -112,12 +172,22 @@ impl GlintApp {
     /// Starts the worker (load, bake) and returns at once.
     pub fn new(opts: AppOptions, ctx: &egui::Context) -> Self {
         let repaint = ctx.clone();
-        let worker = Worker::start(opts.scene.clone(), opts.env.clone(), opts.preview, Arc::new(move || repaint.request_repaint()));
-        let pending_session = opts.session.as_ref().and_then(|p| match std::fs::read_to_string(p).map_err(|e| e.to_string()).and_then(|t| Session::parse(&t)) {
-            Ok(s) => Some(s),
-            Err(e) => {
-                eprintln!("glint app: session {}: {e}", p.display());
-                None
+        let worker = Worker::start(
+            opts.scene.clone(),
+            opts.env.clone(),
+            opts.preview,
+            Arc::new(move || repaint.request_repaint()),
+        );
+        let pending_session = opts.session.as_ref().and_then(|p| {
+            match std::fs::read_to_string(p)
+                .map_err(|e| e.to_string())
+                .and_then(|t| Session::parse(&t))
+            {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    eprintln!("glint app: session {}: {e}", p.display());
+                    None
+                }
             }
         });
         Self {
@@ -205,12 +275,18 @@ impl GlintApp {
     /// Where a full-resolution view pixel is on screen (`None` before the first frame is drawn).
     pub fn view_to_screen(&self, p: [f64; 2]) -> Option<Pos2> {
         let (rect, size) = (self.image_rect?, self.loaded.as_ref()?.size);
-        Some(Pos2::new(rect.min.x + (p[0] / size[0] as f64) as f32 * rect.width(), rect.min.y + (p[1] / size[1] as f64) as f32 * rect.height()))
+        Some(Pos2::new(
+            rect.min.x + (p[0] / size[0] as f64) as f32 * rect.width(),
+            rect.min.y + (p[1] / size[1] as f64) as f32 * rect.height(),
+        ))
     }
 
     fn screen_to_view(&self, p: Pos2) -> Option<[f64; 2]> {
         let (rect, size) = (self.image_rect?, self.loaded.as_ref()?.size);
-        Some([((p.x - rect.min.x) / rect.width()) as f64 * size[0] as f64, ((p.y - rect.min.y) / rect.height()) as f64 * size[1] as f64])
+        Some([
+            ((p.x - rect.min.x) / rect.width()) as f64 * size[0] as f64,
+            ((p.y - rect.min.y) / rect.height()) as f64 * size[1] as f64,
+        ])
     }
 
     /// Replaces the settings (as the side panel would) and refits: one history step.
@@ -252,7 +328,11 @@ impl GlintApp {
 
     fn request_frame(&self) {
         if let Some(view) = &self.view {
-            self.worker.send(Command::Render { view: view.clone(), size: self.size(), rotation_deg: self.doc.settings.env_rotation_deg });
+            self.worker.send(Command::Render {
+                view: view.clone(),
+                size: self.size(),
+                rotation_deg: self.doc.settings.env_rotation_deg,
+            });
         }
     }
 
@@ -264,19 +344,31 @@ impl GlintApp {
     }
 
     fn request_fit(&mut self) {
-        let Some(view) = self.view.clone() else { return };
+        let Some(view) = self.view.clone() else {
+            return;
+        };
         self.fit_id += 1;
         self.pending_fit = Some((self.fit_id, Instant::now()));
-        self.worker.send(Command::Fit { id: self.fit_id, doc: Box::new(self.doc.clone()), view, size: self.size() });
+        self.worker.send(Command::Fit {
+            id: self.fit_id,
+            doc: Box::new(self.doc.clone()),
+            view,
+            size: self.size(),
+        });
     }
 
     fn session(&self) -> Session {
-        Session::new(self.opts.scene.clone(), PathBuf::from(&self.env_path), &self.doc)
+        Session::new(
+            self.opts.scene.clone(),
+            PathBuf::from(&self.env_path),
+            &self.doc,
+        )
     }
 
     fn autosave(&mut self) {
         if let Some(path) = self.opts.autosave.clone()
-            && let Err(e) = glint_exporters::write_atomic(&path, self.session().to_json().as_bytes())
+            && let Err(e) =
+                glint_exporters::write_atomic(&path, self.session().to_json().as_bytes())
         {
             self.note(format!("autosave {}: {e}", path.display()));
         }
@@ -300,7 +392,12 @@ impl GlintApp {
 
     fn load_session(&mut self, session: Session) {
         if std::path::absolute(&session.scene).ok() != std::path::absolute(&self.opts.scene).ok() {
-            self.note(format!("the session is for {}, not {}: start `glint app {} --session FILE`", session.scene.display(), self.opts.scene.display(), session.scene.display()));
+            self.note(format!(
+                "the session is for {}, not {}: start `glint app {} --session FILE`",
+                session.scene.display(),
+                self.opts.scene.display(),
+                session.scene.display()
+            ));
             return;
         }
         if session.env.display().to_string() != self.env_path {
@@ -319,15 +416,32 @@ impl GlintApp {
     fn handle_events(&mut self, ctx: &egui::Context) {
         for event in self.worker.poll() {
             match event {
-                Event::Loaded { view, size, orbit, vertices, triangles, device, anisotropic } => {
+                Event::Loaded {
+                    view,
+                    size,
+                    orbit,
+                    vertices,
+                    triangles,
+                    device,
+                    anisotropic,
+                } => {
                     self.orbit = orbit;
                     if self.view.is_none() {
                         self.view = Some(view.clone());
                     }
-                    self.loaded = Some(Loaded { size, vertices, triangles, device, anisotropic });
+                    self.loaded = Some(Loaded {
+                        size,
+                        vertices,
+                        triangles,
+                        device,
+                        anisotropic,
+                    });
                 }
                 Event::Progress { done, total, phase } => self.progress = (done, total, phase),
-                Event::FirstViewReady { secs_since_start, vertices } => {
+                Event::FirstViewReady {
+                    secs_since_start,
+                    vertices,
+                } => {
                     self.ready = true;
                     self.first_fit_possible_secs = Some(secs_since_start);
                     self.note(format!("first fit possible {secs_since_start:.2} s after launch ({vertices} vertices of the first view baked)"));
@@ -336,7 +450,10 @@ impl GlintApp {
                         self.load_session(s);
                     }
                 }
-                Event::FitPrepared { secs_since_start, prepare_secs } => {
+                Event::FitPrepared {
+                    secs_since_start,
+                    prepare_secs,
+                } => {
                     self.first_fit_ready_secs = Some(secs_since_start);
                     self.note(format!("first view's transfer and energy rows ready {secs_since_start:.2} s after launch ({prepare_secs:.2} s): a stroke there now costs a solve"));
                     if !self.opts.replay.is_empty() {
@@ -344,7 +461,10 @@ impl GlintApp {
                         self.replay(views);
                     }
                 }
-                Event::BakeComplete { bake_secs, vertices } => {
+                Event::BakeComplete {
+                    bake_secs,
+                    vertices,
+                } => {
                     self.bake_complete = Some(bake_secs);
                     self.note(format!("bake complete {bake_secs:.2} s after launch ({vertices} vertices after refinement)"));
                     self.request_frame();
@@ -354,11 +474,18 @@ impl GlintApp {
                         self.show_frame(ctx, image);
                     }
                 }
-                Event::Fitted { id, result, image, view } => {
+                Event::Fitted {
+                    id,
+                    result,
+                    image,
+                    view,
+                } => {
                     if Some(&view) == self.view.as_ref() {
                         self.show_frame(ctx, image);
                     }
-                    self.brdf = result.table_image.as_ref().map(|t| ctx.load_texture("p(h)", tone_map(t, 0.05), TextureOptions::LINEAR));
+                    self.brdf = result.table_image.as_ref().map(|t| {
+                        ctx.load_texture("p(h)", tone_map(t, 0.05), TextureOptions::LINEAR)
+                    });
                     if let Some((pending, since)) = self.pending_fit
                         && pending == id
                     {
@@ -370,7 +497,10 @@ impl GlintApp {
                             "fit {id}: release -> preview {:.3} s (transfer {:.3}, solve {:.4}, table {:.3}, frame {:.3}); residual {:.3e} {:.3e} {:.3e}; active energy rows {:?}",
                             secs, t.transfer_secs, t.solve_secs, t.table_secs, t.render_secs, f.residual_rms[0], f.residual_rms[1], f.residual_rms[2], f.active_energy_rows
                         ));
-                        self.last_fit = Some(FitReport { result: *result, release_to_preview_secs: secs });
+                        self.last_fit = Some(FitReport {
+                            result: *result,
+                            release_to_preview_secs: secs,
+                        });
                         self.fits_done += 1;
                     }
                 }
@@ -398,7 +528,9 @@ impl GlintApp {
         let colour = tone_map(&image, self.doc.settings.exposure);
         match &mut self.preview {
             Some(t) => t.set(colour, TextureOptions::LINEAR),
-            None => self.preview = Some(ctx.load_texture("preview", colour, TextureOptions::LINEAR)),
+            None => {
+                self.preview = Some(ctx.load_texture("preview", colour, TextureOptions::LINEAR))
+            }
         }
         self.preview_image = Some(image);
     }
@@ -408,8 +540,14 @@ impl GlintApp {
         let ctx = ui.ctx().clone();
         self.handle_events(&ctx);
         let (redo, undo) = ui.input_mut(|i| {
-            let redo = i.consume_shortcut(&egui::KeyboardShortcut::new(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z));
-            let undo = i.consume_shortcut(&egui::KeyboardShortcut::new(egui::Modifiers::COMMAND, egui::Key::Z));
+            let redo = i.consume_shortcut(&egui::KeyboardShortcut::new(
+                egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+                egui::Key::Z,
+            ));
+            let undo = i.consume_shortcut(&egui::KeyboardShortcut::new(
+                egui::Modifiers::COMMAND,
+                egui::Key::Z,
+            ));
             (redo, undo)
         });
         if redo {
@@ -417,13 +555,19 @@ impl GlintApp {
         } else if undo {
             self.undo();
         }
-        egui::Panel::right("glint side panel").resizable(true).default_size(300.0).show(ui, |ui| {
-            // The panel is taller than the default window once the p(h) image is shown: it scrolls
-            // with the wheel, and its bar is always drawn so that one sees it can (tests/app_ui.rs).
-            // (egui's default floating bar is invisible until hovered: a solid one instead.)
-            ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
-            egui::ScrollArea::vertical().scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible).show(ui, |ui| self.side_panel(ui));
-        });
+        egui::Panel::right("glint side panel")
+            .resizable(true)
+            .default_size(300.0)
+            .show(ui, |ui| {
+                // The panel is taller than the default window once the p(h) image is shown: it
+                // scrolls with the wheel, and its bar is always drawn so that one sees it can
+                // (tests/app_ui.rs). (egui's default floating bar is invisible until hovered: a
+                // solid one instead.)
+                ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
+                egui::ScrollArea::vertical()
+                    .scroll_bar_visibility(egui::scroll_area::ScrollBarVisibility::AlwaysVisible)
+                    .show(ui, |ui| self.side_panel(ui));
+            });
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
         // Settled settings (no button held): one history step and one fit.
         if self.settings_dirty && !ui.input(|i| i.pointer.any_down()) && self.ready {
@@ -441,48 +585,95 @@ impl GlintApp {
         painter.rect_filled(rect, 0.0, Color32::from_gray(24));
         let size = self.size();
         let scale = (rect.width() / size[0] as f32).min(rect.height() / size[1] as f32);
-        let image_rect = Rect::from_center_size(rect.center(), Vec2::new(size[0] as f32, size[1] as f32) * scale);
+        let image_rect = Rect::from_center_size(
+            rect.center(),
+            Vec2::new(size[0] as f32, size[1] as f32) * scale,
+        );
         self.image_rect = Some(image_rect);
         if let Some(t) = &self.preview {
-            painter.image(t.id(), image_rect, Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)), Color32::WHITE);
+            painter.image(
+                t.id(),
+                image_rect,
+                Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                Color32::WHITE,
+            );
         }
         if !self.ready {
             let (done, total, phase) = self.progress;
-            let text = if self.loaded.is_none() { "loading the scene and the environment…".to_string() } else { format!("baking the {phase}: {done} / {total} vertices") };
-            painter.text(rect.center(), egui::Align2::CENTER_CENTER, text, egui::FontId::proportional(18.0), Color32::WHITE);
+            let text = if self.loaded.is_none() {
+                "loading the scene and the environment…".to_string()
+            } else {
+                format!("baking the {phase}: {done} / {total} vertices")
+            };
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                text,
+                egui::FontId::proportional(18.0),
+                Color32::WHITE,
+            );
         }
         // Strokes of this view, and the one being painted.
         let px = image_rect.width() / size[0] as f32;
         if self.show_strokes
             && let Some(view) = &self.view
         {
-            for v in self.doc.views.iter().filter(|v| &v.view == view && v.image_size == size) {
+            for v in self
+                .doc
+                .views
+                .iter()
+                .filter(|v| &v.view == view && v.image_size == size)
+            {
                 for s in &v.strokes {
-                    let pts: Vec<Pos2> = s.points.iter().filter_map(|p| self.view_to_screen(*p)).collect();
-                    painter.add(egui::Shape::line(pts, LineStroke::new(1.5, Color32::from_rgba_unmultiplied(255, 200, 80, 160))));
+                    let pts: Vec<Pos2> = s
+                        .points
+                        .iter()
+                        .filter_map(|p| self.view_to_screen(*p))
+                        .collect();
+                    painter.add(egui::Shape::line(
+                        pts,
+                        LineStroke::new(1.5, Color32::from_rgba_unmultiplied(255, 200, 80, 160)),
+                    ));
                 }
             }
         }
         if let Some(points) = &self.stroke {
-            let pts: Vec<Pos2> = points.iter().filter_map(|p| self.view_to_screen(*p)).collect();
+            let pts: Vec<Pos2> = points
+                .iter()
+                .filter_map(|p| self.view_to_screen(*p))
+                .collect();
             let radius = self.doc.settings.brush.radius_px as f32 * px;
             for p in &pts {
-                painter.circle_filled(*p, radius, Color32::from_rgba_unmultiplied(255, 255, 255, 12));
+                painter.circle_filled(
+                    *p,
+                    radius,
+                    Color32::from_rgba_unmultiplied(255, 255, 255, 12),
+                );
             }
             painter.add(egui::Shape::line(pts, LineStroke::new(2.0, Color32::WHITE)));
         }
         if let Some(hover) = response.hover_pos() {
-            painter.circle_stroke(hover, self.doc.settings.brush.radius_px as f32 * px, LineStroke::new(1.0, Color32::from_white_alpha(120)));
+            painter.circle_stroke(
+                hover,
+                self.doc.settings.brush.radius_px as f32 * px,
+                LineStroke::new(1.0, Color32::from_white_alpha(120)),
+            );
         }
         // Left-drag paints.
         if self.ready {
             if response.drag_started_by(egui::PointerButton::Primary) {
                 self.stroke = Some(Vec::new());
             }
-            if response.dragged_by(egui::PointerButton::Primary) || response.drag_started_by(egui::PointerButton::Primary) {
-                if let Some(p) = response.interact_pointer_pos().and_then(|p| self.screen_to_view(p))
+            if response.dragged_by(egui::PointerButton::Primary)
+                || response.drag_started_by(egui::PointerButton::Primary)
+            {
+                if let Some(p) = response
+                    .interact_pointer_pos()
+                    .and_then(|p| self.screen_to_view(p))
                     && let Some(points) = &mut self.stroke
-                    && points.last().is_none_or(|q: &[f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) >= 1.0)
+                    && points
+                        .last()
+                        .is_none_or(|q: &[f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) >= 1.0)
                 {
                     points.push(p);
                 }
@@ -522,21 +713,47 @@ impl GlintApp {
         let mut changed = false;
         ui.heading("glint");
         if let Some(l) = &self.loaded {
-            ui.label(format!("{} — {} vertices, {} triangles", self.opts.scene.display(), l.vertices, l.triangles));
-            ui.label(format!("{} lobes; preview on {}", if l.anisotropic { "anisotropic" } else { "isotropic" }, l.device));
+            ui.label(format!(
+                "{} — {} vertices, {} triangles",
+                self.opts.scene.display(),
+                l.vertices,
+                l.triangles
+            ));
+            ui.label(format!(
+                "{} lobes; preview on {}",
+                if l.anisotropic {
+                    "anisotropic"
+                } else {
+                    "isotropic"
+                },
+                l.device
+            ));
         }
         let (done, total, phase) = self.progress;
         if self.bake_complete.is_none() && total > 0 && done < total {
-            ui.add(egui::ProgressBar::new(done as f32 / total as f32).text(format!("bake ({phase}) {done}/{total}")));
+            ui.add(
+                egui::ProgressBar::new(done as f32 / total as f32)
+                    .text(format!("bake ({phase}) {done}/{total}")),
+            );
         }
         ui.horizontal(|ui| {
-            if ui.add_enabled(self.history.can_undo(), egui::Button::new("Undo")).clicked() {
+            if ui
+                .add_enabled(self.history.can_undo(), egui::Button::new("Undo"))
+                .clicked()
+            {
                 self.undo();
             }
-            if ui.add_enabled(self.history.can_redo(), egui::Button::new("Redo")).clicked() {
+            if ui
+                .add_enabled(self.history.can_redo(), egui::Button::new("Redo"))
+                .clicked()
+            {
                 self.redo();
             }
-            ui.label(format!("{} strokes in {} views", self.doc.stroke_count(), self.doc.views.len()));
+            ui.label(format!(
+                "{} strokes in {} views",
+                self.doc.stroke_count(),
+                self.doc.views.len()
+            ));
         });
         ui.separator();
         ui.strong("Brush");
@@ -549,10 +766,19 @@ impl GlintApp {
         ui.horizontal(|ui| {
             ui.label("colour");
             ui.color_edit_button_rgb(&mut b.color);
-            ui.add(egui::DragValue::new(&mut b.intensity).speed(0.05).range(-20.0..=100.0).prefix("× "));
+            ui.add(
+                egui::DragValue::new(&mut b.intensity)
+                    .speed(0.05)
+                    .range(-20.0..=100.0)
+                    .prefix("× "),
+            );
         });
         ui.add(egui::Slider::new(&mut b.radius_px, 1.0..=200.0).text("radius D (px)"));
-        ui.add(egui::Slider::new(&mut b.kappa_per_px, 0.0..=1.0).logarithmic(true).text("falloff κ (1/px)"));
+        ui.add(
+            egui::Slider::new(&mut b.kappa_per_px, 0.0..=1.0)
+                .logarithmic(true)
+                .text("falloff κ (1/px)"),
+        );
         ui.add(egui::Slider::new(&mut b.scale, 0.0..=10.0).text("scale S"));
         ui.checkbox(&mut self.show_strokes, "show strokes");
         ui.separator();
@@ -561,15 +787,42 @@ impl GlintApp {
         ui.horizontal(|ui| {
             let label = ui.label("ρd (R, G, B)");
             for c in 0..3 {
-                changed |= ui.add(egui::DragValue::new(&mut s.rho_d[c]).speed(0.005).range(0.0..=1.0)).labelled_by(label.id).changed();
+                changed |= ui
+                    .add(
+                        egui::DragValue::new(&mut s.rho_d[c])
+                            .speed(0.005)
+                            .range(0.0..=1.0),
+                    )
+                    .labelled_by(label.id)
+                    .changed();
             }
         });
-        changed |= ui.add(egui::Slider::new(&mut s.f0, 0.0..=1.0).text("F0")).changed();
-        changed |= ui.add(egui::Slider::new(&mut s.keep_weight, 0.0..=1.0).text("keep weight")).changed();
-        changed |= ui.checkbox(&mut s.energy_limit, "energy limit (physical)").changed();
-        changed |= ui.add(egui::Slider::new(&mut s.sigma, 0.01..=0.5).logarithmic(true).text("σ (rad)")).changed();
-        changed |= ui.add(egui::Slider::new(&mut s.lobe_count, 4..=300).text("J (lobes)")).changed();
-        if ui.add(egui::Slider::new(&mut s.exposure, 0.05..=8.0).logarithmic(true).text("exposure")).changed()
+        changed |= ui
+            .add(egui::Slider::new(&mut s.f0, 0.0..=1.0).text("F0"))
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut s.keep_weight, 0.0..=1.0).text("keep weight"))
+            .changed();
+        changed |= ui
+            .checkbox(&mut s.energy_limit, "energy limit (physical)")
+            .changed();
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut s.sigma, 0.01..=0.5)
+                    .logarithmic(true)
+                    .text("σ (rad)"),
+            )
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut s.lobe_count, 4..=300).text("J (lobes)"))
+            .changed();
+        if ui
+            .add(
+                egui::Slider::new(&mut s.exposure, 0.05..=8.0)
+                    .logarithmic(true)
+                    .text("exposure"),
+            )
+            .changed()
             && let (Some(img), Some(tex)) = (&self.preview_image, &mut self.preview)
         {
             tex.set(tone_map(img, s.exposure), TextureOptions::LINEAR);
@@ -578,25 +831,48 @@ impl GlintApp {
         ui.strong("Environment");
         ui.horizontal(|ui| {
             let label = ui.label("file");
-            ui.text_edit_singleline(&mut self.env_path).labelled_by(label.id);
+            ui.text_edit_singleline(&mut self.env_path)
+                .labelled_by(label.id);
             if ui.button("Load").clicked() {
-                self.worker.send(Command::SetEnv(PathBuf::from(&self.env_path)));
+                self.worker
+                    .send(Command::SetEnv(PathBuf::from(&self.env_path)));
             }
         });
         // A picker over the maps beside the current one (listed only while the list is open).
         let current = PathBuf::from(&self.env_path);
-        let folder = current.parent().map(|p| if p.as_os_str().is_empty() { std::path::Path::new(".") } else { p }).unwrap_or(std::path::Path::new(".")).to_path_buf();
+        let folder = current
+            .parent()
+            .map(|p| {
+                if p.as_os_str().is_empty() {
+                    std::path::Path::new(".")
+                } else {
+                    p
+                }
+            })
+            .unwrap_or(std::path::Path::new("."))
+            .to_path_buf();
         let mut picked = None;
         egui::ComboBox::from_label("maps in this folder")
-            .selected_text(current.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default())
+            .selected_text(
+                current
+                    .file_name()
+                    .map(|f| f.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+            )
             .show_ui(ui, |ui| {
                 let maps = env_maps_in(&folder);
                 if maps.is_empty() {
                     ui.label("no .exr or .hdr here");
                 }
                 for map in maps {
-                    let name = map.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
-                    if ui.selectable_label(map.file_name() == current.file_name(), name).clicked() {
+                    let name = map
+                        .file_name()
+                        .map(|f| f.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    if ui
+                        .selectable_label(map.file_name() == current.file_name(), name)
+                        .clicked()
+                    {
                         picked = Some(map);
                     }
                 }
@@ -605,7 +881,10 @@ impl GlintApp {
             self.env_path = map.display().to_string();
             self.worker.send(Command::SetEnv(map));
         }
-        let rot = ui.add(egui::Slider::new(&mut self.doc.settings.env_rotation_deg, -180.0..=180.0).text("rotation (°)"));
+        let rot = ui.add(
+            egui::Slider::new(&mut self.doc.settings.env_rotation_deg, -180.0..=180.0)
+                .text("rotation (°)"),
+        );
         if rot.changed() {
             self.request_frame();
             changed = true;
@@ -630,10 +909,25 @@ impl GlintApp {
         if let Some(r) = &self.last_fit {
             let f = &r.result.material.fit;
             let t = r.result.timings;
-            ui.label(format!("solve {:.2} ms, {} pixels in {} view(s)", f.solve_seconds * 1e3, f.pixels, f.views));
-            ui.label(format!("residual (weighted RMS) {:.3e} / {:.3e} / {:.3e}", f.residual_rms[0], f.residual_rms[1], f.residual_rms[2]));
-            ui.label(format!("active energy rows {:?} (limit {})", f.active_energy_rows, if f.energy_limit { "on" } else { "off" }));
-            ui.label(format!("release -> preview {:.3} s (transfer {:.3} s, frame {:.3} s)", r.release_to_preview_secs, t.transfer_secs, t.render_secs));
+            ui.label(format!(
+                "solve {:.2} ms, {} pixels in {} view(s)",
+                f.solve_seconds * 1e3,
+                f.pixels,
+                f.views
+            ));
+            ui.label(format!(
+                "residual (weighted RMS) {:.3e} / {:.3e} / {:.3e}",
+                f.residual_rms[0], f.residual_rms[1], f.residual_rms[2]
+            ));
+            ui.label(format!(
+                "active energy rows {:?} (limit {})",
+                f.active_energy_rows,
+                if f.energy_limit { "on" } else { "off" }
+            ));
+            ui.label(format!(
+                "release -> preview {:.3} s (transfer {:.3} s, frame {:.3} s)",
+                r.release_to_preview_secs, t.transfer_secs, t.render_secs
+            ));
             for n in &f.notes {
                 ui.label(format!("note: {n}"));
             }
@@ -646,7 +940,8 @@ impl GlintApp {
         ui.strong("Session");
         ui.horizontal(|ui| {
             let label = ui.label("file");
-            ui.text_edit_singleline(&mut self.session_path).labelled_by(label.id);
+            ui.text_edit_singleline(&mut self.session_path)
+                .labelled_by(label.id);
         });
         ui.horizontal(|ui| {
             if ui.button("Save").clicked() {
@@ -657,7 +952,10 @@ impl GlintApp {
                 }
             }
             if ui.button("Load").clicked() {
-                match std::fs::read_to_string(&self.session_path).map_err(|e| e.to_string()).and_then(|t| Session::parse(&t)) {
+                match std::fs::read_to_string(&self.session_path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|t| Session::parse(&t))
+                {
                     Ok(s) => self.load_session(s),
                     Err(e) => self.note(format!("error: {}: {e}", self.session_path)),
                 }
@@ -677,10 +975,21 @@ impl GlintApp {
         ui.strong("Export (EXR table, glTF, USD, MERL)");
         ui.horizontal(|ui| {
             let label = ui.label("folder");
-            ui.text_edit_singleline(&mut self.export_dir).labelled_by(label.id);
-            if ui.add_enabled(self.last_fit.is_some(), egui::Button::new("Export")).clicked() {
-                let name = self.opts.scene.file_stem().map_or("material".into(), |s| s.to_string_lossy().into_owned());
-                self.worker.send(Command::Export { dir: PathBuf::from(&self.export_dir), name });
+            ui.text_edit_singleline(&mut self.export_dir)
+                .labelled_by(label.id);
+            if ui
+                .add_enabled(self.last_fit.is_some(), egui::Button::new("Export"))
+                .clicked()
+            {
+                let name = self
+                    .opts
+                    .scene
+                    .file_stem()
+                    .map_or("material".into(), |s| s.to_string_lossy().into_owned());
+                self.worker.send(Command::Export {
+                    dir: PathBuf::from(&self.export_dir),
+                    name,
+                });
             }
         });
         ui.separator();
@@ -707,8 +1016,15 @@ mod tests {
         for f in ["b.hdr", "a.EXR", "c.png", "notes.txt"] {
             std::fs::write(dir.join(f), b"x").unwrap();
         }
-        let names: Vec<String> = env_maps_in(&dir).iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
-        assert_eq!(names, ["a.EXR", "b.hdr"], "files only (not the folder named sub.exr), .exr/.hdr in any case");
+        let names: Vec<String> = env_maps_in(&dir)
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            ["a.EXR", "b.hdr"],
+            "files only (not the folder named sub.exr), .exr/.hdr in any case"
+        );
         assert!(env_maps_in(&dir.join("missing")).is_empty());
         let _ = std::fs::remove_dir_all(&dir);
     }

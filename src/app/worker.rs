@@ -1,12 +1,12 @@
 //! The worker thread that keeps the UI responsive: it loads the inputs, bakes (on a thread of its
-//! own, the first view's vertices first), fits, renders preview frames and exports, and reports back
-//! as [`Event`]s.
+//! own, the first view's vertices first), fits, renders preview frames and exports, and reports
+//! back as [`Event`]s.
 //!
-//! Inputs: [`Command`]s from the UI. Outputs: [`Event`]s, each followed by the `wake` callback (the UI
-//! asks egui for a repaint there). Invariants: the UI thread never waits on this thread; of several
-//! queued frame requests only the newest is rendered; a fit of a view whose vertices are not baked
-//! yet waits for the whole bake (it would see black, unbaked vertices otherwise); every failure is an
-//! [`Event::Error`] line, never a panic of the UI.
+//! Inputs: [`Command`]s from the UI. Outputs: [`Event`]s, each followed by the `wake` callback (the
+//! UI asks egui for a repaint there). Invariants: the UI thread never waits on this thread; of
+//! several queued frame requests only the newest is rendered; a fit of a view whose vertices are
+//! not baked yet waits for the whole bake (it would see black, unbaked vertices otherwise); every
+//! failure is an [`Event::Error`] line, never a panic of the UI.
 
 use super::AppError;
 use super::engine::{Engine, FitResult, PreviewChoice};
@@ -24,9 +24,18 @@ use std::time::Instant;
 #[derive(Debug, Clone)]
 pub enum Command {
     /// A preview frame of a view.
-    Render { view: ViewSpec, size: [u32; 2], rotation_deg: f64 },
+    Render {
+        view: ViewSpec,
+        size: [u32; 2],
+        rotation_deg: f64,
+    },
     /// Fit the document and show the result in `view`; `id` comes back in [`Event::Fitted`].
-    Fit { id: u64, doc: Box<Document>, view: ViewSpec, size: [u32; 2] },
+    Fit {
+        id: u64,
+        doc: Box<Document>,
+        view: ViewSpec,
+        size: [u32; 2],
+    },
     /// Load another environment map.
     SetEnv(PathBuf),
     /// Export the last material into a folder.
@@ -39,21 +48,44 @@ pub enum Command {
 #[derive(Debug, Clone)]
 pub enum Event {
     /// The inputs are loaded: the first view (the scene's first camera) and its orbit parameters.
-    Loaded { view: ViewSpec, size: [u32; 2], orbit: [f32; 3], vertices: usize, triangles: usize, device: String, anisotropic: bool },
+    Loaded {
+        view: ViewSpec,
+        size: [u32; 2],
+        orbit: [f32; 3],
+        vertices: usize,
+        triangles: usize,
+        device: String,
+        anisotropic: bool,
+    },
     /// Bake progress (vertices done of the total) and which phase.
-    Progress { done: usize, total: usize, phase: &'static str },
+    Progress {
+        done: usize,
+        total: usize,
+        phase: &'static str,
+    },
     /// The first view's vertices are baked: painting and fitting work from now on.
-    FirstViewReady { secs_since_start: f64, vertices: usize },
-    /// The first view's transfer and the default lobes' energy rows are ready: a stroke's fit there is
-    /// only a solve from now on.
-    FitPrepared { secs_since_start: f64, prepare_secs: f64 },
+    FirstViewReady {
+        secs_since_start: f64,
+        vertices: usize,
+    },
+    /// The first view's transfer and the default lobes' energy rows are ready: a stroke's fit there
+    /// is only a solve from now on.
+    FitPrepared {
+        secs_since_start: f64,
+        prepare_secs: f64,
+    },
     /// Every vertex is baked, and the mesh refined where the bake decided to (`vertices`: the baked
     /// mesh's, after the refinement).
     BakeComplete { bake_secs: f64, vertices: usize },
     /// A preview frame.
     Frame { view: ViewSpec, image: Arc<Image> },
     /// A fit and the frame that shows it.
-    Fitted { id: u64, result: Box<FitResult>, image: Arc<Image>, view: ViewSpec },
+    Fitted {
+        id: u64,
+        result: Box<FitResult>,
+        image: Arc<Image>,
+        view: ViewSpec,
+    },
     /// Files written by an export.
     Exported(Vec<PathBuf>),
     /// The environment changed (its path).
@@ -65,8 +97,17 @@ pub enum Event {
 enum Msg {
     Cmd(Command),
     /// Cuts so far; with `refined`, the refined mesh (and its tangents) they belong to.
-    Cuts { cuts: Cuts, complete: bool, bake_secs: f64, refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<glam::Vec4>>)> },
-    Progress { done: usize, total: usize, phase: &'static str },
+    Cuts {
+        cuts: Cuts,
+        complete: bool,
+        bake_secs: f64,
+        refined: Option<(Arc<crate::scene::Mesh>, Option<Vec<glam::Vec4>>)>,
+    },
+    Progress {
+        done: usize,
+        total: usize,
+        phase: &'static str,
+    },
     /// The bake could not finish (its message).
     Failed(String),
 }
@@ -80,7 +121,12 @@ pub struct Worker {
 
 impl Worker {
     /// Starts loading `scene` under `env` and baking; `wake` is called after every event.
-    pub fn start(scene: PathBuf, env: PathBuf, preview: PreviewChoice, wake: Arc<dyn Fn() + Send + Sync>) -> Self {
+    pub fn start(
+        scene: PathBuf,
+        env: PathBuf,
+        preview: PreviewChoice,
+        wake: Arc<dyn Fn() + Send + Sync>,
+    ) -> Self {
         let (tx, rx_msg) = channel::<Msg>();
         let (tx_event, rx) = channel::<Event>();
         let bake_tx = tx.clone();
@@ -129,19 +175,47 @@ fn orbit_of(scene: &Scene, camera: &crate::scene::Camera) -> [f32; 3] {
     let r = scene.bounds.radius().max(1e-12);
     let d = camera.eye() - scene.bounds.centre();
     let len = d.length().max(1e-12);
-    [d.x.atan2(d.z).to_degrees(), (d.y / len).clamp(-1.0, 1.0).asin().to_degrees(), len / r]
+    [
+        d.x.atan2(d.z).to_degrees(),
+        (d.y / len).clamp(-1.0, 1.0).asin().to_degrees(),
+        len / r,
+    ]
 }
 
-fn run(scene_path: &std::path::Path, env_path: &std::path::Path, preview: PreviewChoice, rx: &Receiver<Msg>, bake_tx: Sender<Msg>, send: &dyn Fn(Event)) -> Result<(), AppError> {
+fn run(
+    scene_path: &std::path::Path,
+    env_path: &std::path::Path,
+    preview: PreviewChoice,
+    rx: &Receiver<Msg>,
+    bake_tx: Sender<Msg>,
+    send: &dyn Fn(Event),
+) -> Result<(), AppError> {
     let start = Instant::now();
-    let scene = Arc::new(crate::scene::import(scene_path).map_err(|e| AppError::Stage(format!("{}: {e}", scene_path.display())))?);
-    let env = crate::env::load(env_path).map_err(|e| AppError::Stage(format!("{}: {e}", env_path.display())))?;
-    let baker = Baker::new(&scene, &env, BakeSettings::default()).map_err(|e| AppError::Stage(e.to_string()))?;
+    let scene = Arc::new(
+        crate::scene::import(scene_path)
+            .map_err(|e| AppError::Stage(format!("{}: {e}", scene_path.display())))?,
+    );
+    let env = crate::env::load(env_path)
+        .map_err(|e| AppError::Stage(format!("{}: {e}", env_path.display())))?;
+    let baker = Baker::new(&scene, &env, BakeSettings::default())
+        .map_err(|e| AppError::Stage(e.to_string()))?;
     let decisions = baker.decisions.clone();
-    let first_camera = scene.cameras.first().cloned().unwrap_or_else(|| crate::scene::default_camera(&scene.bounds));
+    let first_camera = scene
+        .cameras
+        .first()
+        .cloned()
+        .unwrap_or_else(|| crate::scene::default_camera(&scene.bounds));
     let size = [first_camera.width.max(1), first_camera.height.max(1)];
     let first_view = ViewSpec::Index(0);
-    let mut engine = Engine::new(scene.clone(), env.clone(), env_path.to_path_buf(), baker.tangents.clone(), decisions.anisotropic, decisions.resolution, preview)?;
+    let mut engine = Engine::new(
+        scene.clone(),
+        env.clone(),
+        env_path.to_path_buf(),
+        baker.tangents.clone(),
+        decisions.anisotropic,
+        decisions.resolution,
+        preview,
+    )?;
     send(Event::Loaded {
         view: first_view.clone(),
         size,
@@ -151,10 +225,16 @@ fn run(scene_path: &std::path::Path, env_path: &std::path::Path, preview: Previe
         device: engine.device(),
         anisotropic: decisions.anisotropic,
     });
-    // First fit fast: the vertices the first view sees (at its size and at the fit size), then the rest.
+    // First fit fast: the vertices the first view sees (at its size and at the fit size), then the
+    // rest.
     let camera = engine.camera(&first_view, size)?;
     let mut first = crate::raster::visible_vertices(&scene.mesh, &camera, size[0], size[1]);
-    first.extend(crate::raster::visible_vertices(&scene.mesh, &camera, (size[0] / 4).max(1), (size[1] / 4).max(1)));
+    first.extend(crate::raster::visible_vertices(
+        &scene.mesh,
+        &camera,
+        (size[0] / 4).max(1),
+        (size[1] / 4).max(1),
+    ));
     first.sort_unstable();
     first.dedup();
     let cancel = std::sync::atomic::AtomicBool::new(false);
@@ -162,16 +242,36 @@ fn run(scene_path: &std::path::Path, env_path: &std::path::Path, preview: Previe
         let (baker, first, cancel) = (&baker, &first, &cancel);
         std::thread::Builder::new()
             .name("glint bake".into())
-            .spawn_scoped(scope, move || bake_phases(baker, first, &bake_tx, start, cancel))
+            .spawn_scoped(scope, move || {
+                bake_phases(baker, first, &bake_tx, start, cancel)
+            })
             .map_err(|e| AppError::Stage(format!("cannot start the bake thread: {e}")))?;
-        let result = serve(&mut engine, rx, send, &first_view, &first_camera.name, size, first.len(), start);
+        let result = serve(
+            &mut engine,
+            rx,
+            send,
+            &first_view,
+            &first_camera.name,
+            size,
+            first.len(),
+            start,
+        );
         cancel.store(true, std::sync::atomic::Ordering::Relaxed);
         result
     })
 }
 
 /// The worker's loop over commands and bake results.
-fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_view: &ViewSpec, first_name: &str, first_size: [u32; 2], first_count: usize, start: Instant) -> Result<(), AppError> {
+fn serve(
+    engine: &mut Engine,
+    rx: &Receiver<Msg>,
+    send: &dyn Fn(Event),
+    first_view: &ViewSpec,
+    first_name: &str,
+    first_size: [u32; 2],
+    first_count: usize,
+    start: Instant,
+) -> Result<(), AppError> {
     let is_first = |v: &ViewSpec| v == first_view || *v == ViewSpec::Name(first_name.into());
     let mut complete = false;
     let mut first_ready = false;
@@ -188,7 +288,10 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                 }
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
                     match engine.prepare(&doc, first_view, first_size) {
-                        Ok(secs) => send(Event::FitPrepared { secs_since_start: start.elapsed().as_secs_f64(), prepare_secs: secs }),
+                        Ok(secs) => send(Event::FitPrepared {
+                            secs_since_start: start.elapsed().as_secs_f64(),
+                            prepare_secs: secs,
+                        }),
                         Err(e) => send(Event::Error(e.to_string())),
                     }
                     continue;
@@ -203,21 +306,32 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
         let mut batch = vec![msg];
         batch.extend(rx.try_iter());
         // Of the frame requests in this batch only the newest matters.
-        let last_render = batch.iter().rposition(|m| matches!(m, Msg::Cmd(Command::Render { .. })));
+        let last_render = batch
+            .iter()
+            .rposition(|m| matches!(m, Msg::Cmd(Command::Render { .. })));
         for (i, msg) in batch.into_iter().enumerate() {
             match msg {
                 Msg::Cmd(Command::Quit) => return Ok(()),
                 Msg::Cmd(Command::Render { .. }) if Some(i) != last_render => {}
-                Msg::Cmd(Command::Render { view, size, rotation_deg }) => {
+                Msg::Cmd(Command::Render {
+                    view,
+                    size,
+                    rotation_deg,
+                }) => {
                     if first_ready {
                         match engine.render(&view, size, rotation_deg) {
-                            Ok(image) => send(Event::Frame { view, image: Arc::new(image) }),
+                            Ok(image) => send(Event::Frame {
+                                view,
+                                image: Arc::new(image),
+                            }),
                             Err(e) => send(Event::Error(e.to_string())),
                         }
                     }
                 }
                 Msg::Cmd(cmd @ Command::Fit { .. }) => {
-                    let Command::Fit { doc, .. } = &cmd else { unreachable!() };
+                    let Command::Fit { doc, .. } = &cmd else {
+                        unreachable!()
+                    };
                     let needs_all = doc.views.iter().any(|v| !is_first(&v.view));
                     if !first_ready || (needs_all && !complete) {
                         send(Event::Error("the fit waits for the bake of this view's vertices (see the progress bar)".into()));
@@ -234,22 +348,35 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                     Ok(files) => send(Event::Exported(files)),
                     Err(e) => send(Event::Error(e.to_string())),
                 },
-                Msg::Cuts { cuts, complete: all, bake_secs, refined } => {
+                Msg::Cuts {
+                    cuts,
+                    complete: all,
+                    bake_secs,
+                    refined,
+                } => {
                     if let Err(e) = engine.set_bake(cuts, refined) {
                         send(Event::Error(e.to_string()));
                         continue;
                     }
                     if !first_ready {
                         first_ready = true;
-                        send(Event::FirstViewReady { secs_since_start: start.elapsed().as_secs_f64(), vertices: first_count });
+                        send(Event::FirstViewReady {
+                            secs_since_start: start.elapsed().as_secs_f64(),
+                            vertices: first_count,
+                        });
                         prepare = Some(Document::default());
                     }
                     if all {
                         complete = true;
-                        send(Event::BakeComplete { bake_secs, vertices: engine.baked_vertices() });
+                        send(Event::BakeComplete {
+                            bake_secs,
+                            vertices: engine.baked_vertices(),
+                        });
                     }
                     let ready = |c: &Command| match c {
-                        Command::Fit { doc, .. } => complete || doc.views.iter().all(|v| is_first(&v.view)),
+                        Command::Fit { doc, .. } => {
+                            complete || doc.views.iter().all(|v| is_first(&v.view))
+                        }
                         _ => true,
                     };
                     if waiting_fit.as_ref().is_some_and(ready)
@@ -258,7 +385,9 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
                         fit(engine, cmd, send);
                     }
                 }
-                Msg::Progress { done, total, phase } => send(Event::Progress { done, total, phase }),
+                Msg::Progress { done, total, phase } => {
+                    send(Event::Progress { done, total, phase })
+                }
                 Msg::Failed(e) => send(Event::Error(format!("the bake failed: {e}"))),
             }
         }
@@ -266,7 +395,15 @@ fn serve(engine: &mut Engine, rx: &Receiver<Msg>, send: &dyn Fn(Event), first_vi
 }
 
 fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
-    let Command::Fit { id, doc, view, size } = cmd else { return };
+    let Command::Fit {
+        id,
+        doc,
+        view,
+        size,
+    } = cmd
+    else {
+        return;
+    };
     let result = engine.fit(&doc).and_then(|mut r| {
         let t = Instant::now();
         let image = engine.render(&view, size, doc.settings.env_rotation_deg)?;
@@ -274,14 +411,25 @@ fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
         Ok((r, image))
     });
     match result {
-        Ok((r, image)) => send(Event::Fitted { id, result: Box::new(r), image: Arc::new(image), view }),
+        Ok((r, image)) => send(Event::Fitted {
+            id,
+            result: Box::new(r),
+            image: Arc::new(image),
+            view,
+        }),
         Err(e) => send(Event::Error(e.to_string())),
     }
 }
 
 /// Bakes `first` then the remaining vertices (in chunks, so that `cancel` and progress are seen),
 /// sending cuts after each phase.
-fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, cancel: &std::sync::atomic::AtomicBool) {
+fn bake_phases(
+    baker: &Baker,
+    first: &[u32],
+    tx: &Sender<Msg>,
+    start: Instant,
+    cancel: &std::sync::atomic::AtomicBool,
+) {
     let n = baker.scene().mesh.positions.len();
     let mut per_vertex = vec![VertexCut::default(); n];
     // Vertices already baked: those of the first view and the traced neighbours they needed (vertex
@@ -303,7 +451,11 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
             let done = baked.iter().filter(|&&b| b).count();
             let mut bake = || {
                 baker.bake_set(chunk, &mut per_vertex, &mut baked, &|k| {
-                    let _ = tx.send(Msg::Progress { done: (done + k).min(n), total: n, phase });
+                    let _ = tx.send(Msg::Progress {
+                        done: (done + k).min(n),
+                        total: n,
+                        phase,
+                    });
                 })
             };
             match &pool {
@@ -311,12 +463,24 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
                 None => bake(),
             }
         }
-        if tx.send(Msg::Cuts { cuts: Cuts::from_vertex_cuts(&per_vertex), complete: false, bake_secs: start.elapsed().as_secs_f64(), refined: None }).is_err() {
+        if tx
+            .send(Msg::Cuts {
+                cuts: Cuts::from_vertex_cuts(&per_vertex),
+                complete: false,
+                bake_secs: start.elapsed().as_secs_f64(),
+                refined: None,
+            })
+            .is_err()
+        {
             return;
         }
     }
     // Decision (e): refine where visibility changes between vertices, then trace the new vertices.
-    let _ = tx.send(Msg::Progress { done: n, total: n, phase: "refining" });
+    let _ = tx.send(Msg::Progress {
+        done: n,
+        total: n,
+        phase: "refining",
+    });
     let refine = || baker.refine(per_vertex, start);
     let bake = match &pool {
         Some(pool) => pool.install(refine),
@@ -337,15 +501,20 @@ fn bake_phases(baker: &Baker, first: &[u32], tx: &Sender<Msg>, start: Instant, c
             }
         }
     };
-    let _ = tx.send(Msg::Cuts { cuts: bake.cuts, complete: true, bake_secs: start.elapsed().as_secs_f64(), refined });
+    let _ = tx.send(Msg::Cuts {
+        cuts: bake.cuts,
+        complete: true,
+        bake_secs: start.elapsed().as_secs_f64(),
+        refined,
+    });
 }
 
 /// The background bake's own thread pool, its threads at a lower scheduling priority (nice +10 on
-/// Linux), so that the fits, p(h) tables and preview frames the user waits for, which run on rayon's
-/// global pool, are neither queued behind bake jobs nor halved by them. (With one shared pool, rayon's
-/// workers drain their own queues of bake jobs before jobs injected from the worker thread: on
-/// dragon_100k a J = 24 solve took 1.16 s and the table 1.79 s while the bake ran.) `None` (the global
-/// pool) when no pool can be made.
+/// Linux), so that the fits, p(h) tables and preview frames the user waits for, which run on
+/// rayon's global pool, are neither queued behind bake jobs nor halved by them. (With one shared
+/// pool, rayon's workers drain their own queues of bake jobs before jobs injected from the worker
+/// thread: on dragon_100k a J = 24 solve took 1.16 s and the table 1.79 s while the bake ran.)
+/// `None` (the global pool) when no pool can be made.
 fn bake_pool() -> Option<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(rayon::current_num_threads())
@@ -359,8 +528,8 @@ fn bake_pool() -> Option<rayon::ThreadPool> {
 /// applies to that thread only); a no-op elsewhere or when refused.
 fn lower_priority() {
     #[cfg(target_os = "linux")]
-    // SAFETY: gettid and setpriority take plain integers and touch no memory of ours; a failure only
-    // returns -1, which is ignored (the thread keeps its priority).
+    // SAFETY: gettid and setpriority take plain integers and touch no memory of ours; a failure
+    // only returns -1, which is ignored (the thread keeps its priority).
     unsafe {
         let tid = libc::gettid();
         let _ = libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, 10);

@@ -1,41 +1,44 @@
 //! Per-vertex visibility cuts through the light tree (method.md §4; Åkerlund et al. 2007).
 //!
 //! Inputs: a vertex (position, unit normal), the [`LightTree`], a [`Tracer`] and [`CutSettings`].
-//! Output: the vertex's cut — tree nodes that partition the leaves above its horizon — with, per node,
-//! the cosine-weighted visible fraction
+//! Output: the vertex's cut — tree nodes that partition the leaves above its horizon — with, per
+//! node, the cosine-weighted visible fraction
 //!   V_k = Σ_{i∈k} Ω_i c_i V_i / Σ_{i∈k} Ω_i c_i,   c_i = max(d_i·n, 0),  V_i ∈ {0, 1}
-//! (V_i = visibility of leaf direction d_i by a ray from the vertex offset along n; with visibility cells
-//! of C > 1 leaves, V_i is the visibility along the mean direction of the cell that holds leaf i). The mean of
-//! Ṽ = V·max(cos, 0) over a node follows exactly: ⟨Ṽ⟩_k = V_k · Σ Ω_i c_i / Ω_k; and within the node Ṽ is
-//! reconstructed as V_k·c_i, which is exact when V is constant over the node.
+//! (V_i = visibility of leaf direction d_i by a ray from the vertex offset along n; with visibility
+//! cells of C > 1 leaves, V_i is the visibility along the mean direction of the cell that holds
+//! leaf i). The mean of Ṽ = V·max(cos, 0) over a node follows exactly: ⟨Ṽ⟩_k = V_k · Σ Ω_i c_i /
+//! Ω_k; and within the node Ṽ is reconstructed as V_k·c_i, which is exact when V is constant over
+//! the node.
 //!
 //! Algorithm (top-down, then merged bottom-up):
 //! 1. A node wholly below the horizon is dropped (Ṽ = 0, no rays).
-//! 2. A node whose cone of directions is free ([`Tracer::cone_free`]) is visible, V = 1, exactly, with
-//!    no rays: this settles open sky wholesale.
-//! 3. A node so near the horizon that ½·Σ Ω_i c_i ≤ ε·Ω_k is accepted with V = ½ and no rays: whatever
-//!    its true visibility, the mean |Ṽ| error over it is within ε.
-//! 4. Otherwise a node with at most `trace_leaves` leaves has every above-horizon leaf traced; larger
-//!    nodes are split.
-//! 5. Sibling results merge into their parent while the error bound
-//!    Σ_i Ω_i c_i |V_i − V_parent| ≤ ε·Ω_parent holds, i.e. the mean absolute error of Ṽ over the node is
-//!    at most ε (the bound is exact for traced leaves and conservative above them).
+//! 2. A node whose cone of directions is free ([`Tracer::cone_free`]) is visible, V = 1, exactly,
+//!    with no rays: this settles open sky wholesale.
+//! 3. A node so near the horizon that ½·Σ Ω_i c_i ≤ ε·Ω_k is accepted with V = ½ and no rays:
+//!    whatever its true visibility, the mean |Ṽ| error over it is within ε.
+//! 4. Otherwise a node with at most `trace_leaves` leaves has every above-horizon leaf traced;
+//!    larger nodes are split.
+//! 5. Sibling results merge into their parent while the error bound Σ_i Ω_i c_i |V_i − V_parent| ≤
+//!    ε·Ω_parent holds, i.e. the mean absolute error of Ṽ over the node is at most ε (the bound is
+//!    exact for traced leaves and conservative above them).
 //! 6. Boundary refinement (`boundary_levels` > 0, decided with the cell size): a traced cell with a
-//!    traced neighbour of the other visibility ([`CellNeighbours`], the cube map's 8-neighbourhood) has
-//!    a shadow edge through or beside it; it is traced again as cells of a quarter of its leaves (half
-//!    as wide) and the cut rebuilt, up to `boundary_levels` times. A ray per cell moves a shadow edge to
-//!    the cells' borders; this puts it within the finer cells where it matters, and leaves open sky
-//!    and solid occluders at the coarse size (teapot under a uniform sky, 5.625° cells: the error
-//!    against a ray per direction 0.0229 → 0.0002 sr with two levels, at 19 % of that bake's rays).
+//!    traced neighbour of the other visibility ([`CellNeighbours`], the cube map's 8-neighbourhood)
+//!    has a shadow edge through or beside it; it is traced again as cells of a quarter of its
+//!    leaves (half as wide) and the cut rebuilt, up to `boundary_levels` times. A ray per cell
+//!    moves a shadow edge to the cells' borders; this puts it within the finer cells where it
+//!    matters, and leaves open sky and solid occluders at the coarse size (teapot under a uniform
+//!    sky, 5.625° cells: the error against a ray per direction 0.0229 → 0.0002 sr with two levels,
+//!    at 19 % of that bake's rays).
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
 //!
-//! 8. A vertex may be given its neighbours' agreed cells ([`Prior`], [`super::sparse`] rule 4): those
-//!    cells are set before the cut is built and cast no ray; everything else is as above.
+//! 8. A vertex may be given its neighbours' agreed cells ([`Prior`], [`super::sparse`] rule 4):
+//!    those cells are set before the cut is built and cast no ray; everything else is as above.
 //!
-//! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon leaf
-//! lies in exactly one; values are in [0, 1]; the result does not depend on the thread that made it.
+//! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon
+//! leaf lies in exactly one; values are in [0, 1]; the result does not depend on the thread that
+//! made it.
 
 use super::tracer::Tracer;
 use crate::sphere::{DirectionSet, LightTree};
@@ -50,29 +53,37 @@ pub struct CutSettings {
     /// Cap on the number of nodes in one vertex's cut.
     pub max_cut: usize,
     /// Nodes with at most this many leaves are ray traced cell by cell when their cone is not free.
-    /// The default, 12288, is half of a 64-per-side set's 24576 leaves: the cone test is made on the
-    /// root (a vertex's whole upper hemisphere) and not on the quarter- and eighth-spheres below it,
-    /// whose tests cost more than the rays they save on a detailed mesh (release build, `glint bake
-    /// --json`: dragon_100k under courtyard 5.5 % faster than with 4096, with 4.5 % more rays; the
-    /// bunny and the teapot under studio 1 % slower).
+    /// The default, 12288, is half of a 64-per-side set's 24576 leaves: the cone test is made on
+    /// the root (a vertex's whole upper hemisphere) and not on the quarter- and eighth-spheres
+    /// below it, whose tests cost more than the rays they save on a detailed mesh (release build,
+    /// `glint bake --json`: dragon_100k under courtyard 5.5 % faster than with 4096, with 4.5 %
+    /// more rays; the bunny and the teapot under studio 1 % slower).
     pub trace_leaves: usize,
-    /// Visibility resolution: nodes with at most this many leaves are visibility cells, traced with one
-    /// ray along their mean direction (1 = every leaf direction is traced). Light and BRDF still use
-    /// every leaf; within a cell Ṽ = V_cell·max(cos, 0).
+    /// Visibility resolution: nodes with at most this many leaves are visibility cells, traced with
+    /// one ray along their mean direction (1 = every leaf direction is traced). Light and BRDF
+    /// still use every leaf; within a cell Ṽ = V_cell·max(cos, 0).
     pub cell_leaves: usize,
     /// Ray origin offset along the normal, as a fraction of the bounding-box diagonal.
     pub ray_offset: f64,
-    /// Boundary refinement: a 2×2 block of visibility cells whose rays disagree (a shadow edge crosses
-    /// it) is traced again with cells half as wide, up to this many times (0: off). Point-sampled cells
-    /// alias at shadow edges; this resolves the edges at the finer size and leaves open sky and solid
-    /// occluders at the coarse one. [`crate::bake::Baker`] sets it from decision (d).
+    /// Boundary refinement: a 2×2 block of visibility cells whose rays disagree (a shadow edge
+    /// crosses it) is traced again with cells half as wide, up to this many times (0: off).
+    /// Point-sampled cells alias at shadow edges; this resolves the edges at the finer size and
+    /// leaves open sky and solid occluders at the coarse one. [`crate::bake::Baker`] sets it from
+    /// decision (d).
     #[serde(default)]
     pub boundary_levels: u32,
 }
 
 impl Default for CutSettings {
     fn default() -> Self {
-        Self { epsilon: 0.02, max_cut: 1024, trace_leaves: 12288, cell_leaves: 4, ray_offset: 1e-4, boundary_levels: 0 }
+        Self {
+            epsilon: 0.02,
+            max_cut: 1024,
+            trace_leaves: 12288,
+            cell_leaves: 4,
+            ray_offset: 1e-4,
+            boundary_levels: 0,
+        }
     }
 }
 
@@ -88,13 +99,13 @@ pub struct VertexCut {
     /// Interpolated from traced neighbours instead of traced (decision (f), [`super::sparse`]).
     pub interpolated: bool,
     /// What the vertex knows of each visibility cell, when asked for ([`Prior::record`]; empty
-    /// otherwise): per 64 cells two words, the cells whose visibility along their ray is known exactly
-    /// and, of those, the visible ones. Used while baking only (not stored in the bake).
+    /// otherwise): per 64 cells two words, the cells whose visibility along their ray is known
+    /// exactly and, of those, the visible ones. Used while baking only (not stored in the bake).
     pub cell_bits: Vec<[u64; 2]>,
 }
 
-/// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by (refinement level,
-/// the cell's first leaf) (generation-stamped so that nothing is cleared between vertices).
+/// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by (refinement
+/// level, the cell's first leaf) (generation-stamped so that nothing is cleared between vertices).
 pub struct CutScratch {
     stamp: Vec<u32>,
     visible: Vec<bool>,
@@ -110,7 +121,13 @@ impl CutScratch {
     /// refinement.
     pub fn new(leaves: usize, boundary_levels: u32) -> Self {
         let n = leaves * (boundary_levels as usize + 1);
-        Self { stamp: vec![0; n], visible: vec![false; n], refine: vec![0; n], traced: Vec::new(), generation: 0 }
+        Self {
+            stamp: vec![0; n],
+            visible: vec![false; n],
+            refine: vec![0; n],
+            traced: Vec::new(),
+            generation: 0,
+        }
     }
 
     fn next_vertex(&mut self) {
@@ -143,9 +160,9 @@ struct Ctx<'a> {
     redo: bool,
 }
 
-/// Which visibility cells border which, for boundary refinement: per tree node that is a cell at one of
-/// the refined sizes (`cell_leaves`, a quarter of it, …), the cells of the same size whose leaves touch
-/// its leaves in the cube map's 8-neighbourhood (across face edges too).
+/// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
+/// one of the refined sizes (`cell_leaves`, a quarter of it, …), the cells of the same size whose
+/// leaves touch its leaves in the cube map's 8-neighbourhood (across face edges too).
 #[derive(Debug, Clone, Default)]
 pub struct CellNeighbours {
     offsets: Vec<u32>,
@@ -153,8 +170,8 @@ pub struct CellNeighbours {
 }
 
 impl CellNeighbours {
-    /// Neighbours of the cells of `cell_leaves` leaves and of each quarter of it, `levels` sizes in all
-    /// (the sizes that can be refined: at least 4 leaves). `levels` = 0 gives an empty table.
+    /// Neighbours of the cells of `cell_leaves` leaves and of each quarter of it, `levels` sizes in
+    /// all (the sizes that can be refined: at least 4 leaves). `levels` = 0 gives an empty table.
     pub fn new(set: &DirectionSet, tree: &LightTree, cell_leaves: usize, levels: u32) -> Self {
         let nodes = tree.nodes();
         let texels = tree.leaf_texels();
@@ -165,14 +182,25 @@ impl CellNeighbours {
             for (l, &t) in texels.iter().enumerate() {
                 leaf_of_texel[t as usize] = l as u32;
             }
-            // A leaf's 8 neighbours: the texels whose centres lie one texel beyond its edges' midpoints and
-            // its corners (reflected through them from its centre).
+            // A leaf's 8 neighbours: the texels whose centres lie one texel beyond its edges'
+            // midpoints and its corners (reflected through them from its centre).
             let adjacent: Vec<[u32; 8]> = texels
                 .iter()
                 .map(|&t| {
                     let (c, d) = (set.texel_corners(t as usize), set.directions()[t as usize]);
-                    let points = [c[0], c[1], c[2], c[3], (c[0] + c[1]) * 0.5, (c[1] + c[2]) * 0.5, (c[2] + c[3]) * 0.5, (c[3] + c[0]) * 0.5];
-                    points.map(|p| leaf_of_texel[set.texel_of((2.0 * p - d).try_normalize().unwrap_or(d))])
+                    let points = [
+                        c[0],
+                        c[1],
+                        c[2],
+                        c[3],
+                        (c[0] + c[1]) * 0.5,
+                        (c[1] + c[2]) * 0.5,
+                        (c[2] + c[3]) * 0.5,
+                        (c[3] + c[0]) * 0.5,
+                    ];
+                    points.map(|p| {
+                        leaf_of_texel[set.texel_of((2.0 * p - d).try_normalize().unwrap_or(d))]
+                    })
                 })
                 .collect();
             let mut size = cell_leaves;
@@ -184,12 +212,14 @@ impl CellNeighbours {
                 let cells = super::decisions::nodes_of_at_most(tree, size as u32, 0);
                 for &k in &cells {
                     let node = nodes[k];
-                    cell_of_leaf[node.first as usize..(node.first + node.count) as usize].fill(k as u32);
+                    cell_of_leaf[node.first as usize..(node.first + node.count) as usize]
+                        .fill(k as u32);
                 }
                 for k in cells {
                     let node = nodes[k];
                     let list = &mut lists[k];
-                    for around in &adjacent[node.first as usize..(node.first + node.count) as usize] {
+                    for around in &adjacent[node.first as usize..(node.first + node.count) as usize]
+                    {
                         for &nb in around {
                             let m = cell_of_leaf[nb as usize];
                             if m != k as u32 && !list.contains(&m) {
@@ -224,8 +254,8 @@ impl CellNeighbours {
 /// Visibility a vertex takes from its traced neighbours instead of tracing ([`super::sparse`]), and
 /// whether to record its own for others. `cells` lists the visibility cells (node, first leaf, end
 /// leaf) in leaf order; `agreed` ([`VertexCut::cell_bits`]' layout) the cells whose visibility its
-/// sampled neighbours all know and agree on ([`super::sparse::agreed_cells`]): each is set to it before
-/// the cut is built, so its ray is not cast. The default takes and records nothing.
+/// sampled neighbours all know and agree on ([`super::sparse::agreed_cells`]): each is set to it
+/// before the cut is built, so its ray is not cast. The default takes and records nothing.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Prior<'a> {
     pub cells: &'a [(u32, u32, u32)],
@@ -245,11 +275,16 @@ impl Prior<'_> {
     }
 }
 
-/// [`VertexCut::cell_bits`] of a vertex just cut: a cell's visibility is known when its ray was cast
-/// (its scratch stamp is this vertex's) or a cut node of V exactly 1 or 0 covers it (a free cone, or
-/// cells merged that were all visible or all not); not where the cut guessed (V = ½), splits it
-/// finer than a cell or has nothing (below the horizon).
-fn cell_bits(scratch: &CutScratch, tree: &LightTree, entries: &[(u32, f32)], cells: &[(u32, u32, u32)]) -> Vec<[u64; 2]> {
+/// [`VertexCut::cell_bits`] of a vertex just cut: a cell's visibility is known when its ray was
+/// cast (its scratch stamp is this vertex's) or a cut node of V exactly 1 or 0 covers it (a free
+/// cone, or cells merged that were all visible or all not); not where the cut guessed (V = ½),
+/// splits it finer than a cell or has nothing (below the horizon).
+fn cell_bits(
+    scratch: &CutScratch,
+    tree: &LightTree,
+    entries: &[(u32, f32)],
+    cells: &[(u32, u32, u32)],
+) -> Vec<[u64; 2]> {
     let mut bits = vec![[0u64; 2]; cells.len().div_ceil(64)];
     let nodes = tree.nodes();
     let mut e = 0usize;
@@ -257,7 +292,9 @@ fn cell_bits(scratch: &CutScratch, tree: &LightTree, entries: &[(u32, f32)], cel
         let known = if scratch.stamp[first as usize] == scratch.generation {
             Some(scratch.visible[first as usize])
         } else {
-            while e < entries.len() && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first {
+            while e < entries.len()
+                && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first
+            {
                 e += 1;
             }
             entries.get(e).and_then(|&(k, v)| {
@@ -281,9 +318,9 @@ fn cell_bits(scratch: &CutScratch, tree: &LightTree, entries: &[(u32, f32)], cel
     bits
 }
 
-/// Marks for refinement each cell traced at size `cell` (entries of `scratch.traced` from `from` on)
-/// that has a traced neighbour of the other visibility: a shadow edge runs through or beside it.
-/// Returns whether any was marked.
+/// Marks for refinement each cell traced at size `cell` (entries of `scratch.traced` from `from`
+/// on) that has a traced neighbour of the other visibility: a shadow edge runs through or beside
+/// it. Returns whether any was marked.
 fn mark_boundaries(ctx: &mut Ctx, neighbours: &CellNeighbours, cell: usize, from: usize) -> bool {
     let (tree, base) = (ctx.tree, ctx.key(0, cell));
     let key = |k: u32| base + tree.nodes()[k as usize].first as usize;
@@ -296,7 +333,11 @@ fn mark_boundaries(ctx: &mut Ctx, neighbours: &CellNeighbours, cell: usize, from
             continue;
         }
         let v = scratch.visible[key(k)];
-        if neighbours.of(k as usize).iter().any(|&m| scratch.stamp[key(m)] == generation && scratch.visible[key(m)] != v) {
+        if neighbours
+            .of(k as usize)
+            .iter()
+            .any(|&m| scratch.stamp[key(m)] == generation && scratch.visible[key(m)] != v)
+        {
             scratch.refine[key(k)] = generation;
             any = true;
         }
@@ -326,7 +367,9 @@ pub fn vertex_cut(
         while rest != 0 {
             let i = w * 64 + rest.trailing_zeros() as usize;
             rest &= rest - 1;
-            let Some(&(k, first, _)) = prior.cells.get(i) else { break };
+            let Some(&(k, first, _)) = prior.cells.get(i) else {
+                break;
+            };
             // A top-level cell's scratch key is its first leaf ([`Ctx::key`]).
             scratch.stamp[first as usize] = scratch.generation;
             scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
@@ -356,8 +399,8 @@ pub fn vertex_cut(
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
     build(&mut ctx, 0, false, top, &mut entries);
-    // Boundary refinement: cells beside a traced cell of the other visibility are traced again as four
-    // cells half as wide, then the cut is rebuilt (cached rays and cone answers are reused).
+    // Boundary refinement: cells beside a traced cell of the other visibility are traced again as
+    // four cells half as wide, then the cut is rebuilt (cached rays and cone answers are reused).
     let (mut cell, mut from) = (top, 0);
     for _ in 0..ctx.boundary_levels {
         if cell < 4 || !mark_boundaries(&mut ctx, neighbours, cell, from) {
@@ -370,13 +413,27 @@ pub fn vertex_cut(
         cell /= 4;
     }
     while entries.len() > settings.max_cut.max(1) && ctx.epsilon < 1.0 {
-        ctx.epsilon = if ctx.epsilon > 0.0 { ctx.epsilon * 2.0 } else { 1e-3 };
+        ctx.epsilon = if ctx.epsilon > 0.0 {
+            ctx.epsilon * 2.0
+        } else {
+            1e-3
+        };
         ctx.redo = true;
         entries.clear();
         build(&mut ctx, 0, false, top, &mut entries);
     }
-    let cell_bits = if prior.record { cell_bits(ctx.scratch, tree, &entries, prior.cells) } else { Vec::new() };
-    VertexCut { entries, rays: ctx.rays, epsilon_used: ctx.epsilon, interpolated: false, cell_bits }
+    let cell_bits = if prior.record {
+        cell_bits(ctx.scratch, tree, &entries, prior.cells)
+    } else {
+        Vec::new()
+    };
+    VertexCut {
+        entries,
+        rays: ctx.rays,
+        epsilon_used: ctx.epsilon,
+        interpolated: false,
+        cell_bits,
+    }
 }
 
 impl Ctx<'_> {
@@ -392,33 +449,48 @@ impl Ctx<'_> {
     }
 }
 
-/// Σ_i Ω_i c_i over the node's leaves, with Ω_i c_i = max(moment_i·n, 0) (exact for a leaf wholly above
-/// the horizon; the leaf's mean cosine otherwise).
+/// Σ_i Ω_i c_i over the node's leaves, with Ω_i c_i = max(moment_i·n, 0) (exact for a leaf wholly
+/// above the horizon; the leaf's mean cosine otherwise).
 fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
     let node = tree.nodes()[k];
     let range = node.first as usize..(node.first + node.count) as usize;
-    tree.leaf_moments()[range].iter().map(|m| m.dot(n).max(0.0)).sum()
+    tree.leaf_moments()[range]
+        .iter()
+        .map(|m| m.dot(n).max(0.0))
+        .sum()
 }
 
-/// `cell`: the visibility cell size (leaves) in this subtree — `cell_leaves`, or a quarter of it per
-/// boundary refinement.
+/// `cell`: the visibility cell size (leaves) in this subtree — `cell_leaves`, or a quarter of it
+/// per boundary refinement.
 fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, f32)>) -> Sums {
     let node = ctx.tree.nodes()[k];
     let (max_cos, wholly_above) = node.horizon(ctx.n);
     if max_cos <= 0.0 {
         return (0.0, 0.0, 0.0);
     }
-    // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a quarter
-    // of its leaves instead.
-    let refined = ctx.boundary_levels > 0 && known && node.count as usize <= cell && !node.is_leaf() && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
+    // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a
+    // quarter of its leaves instead.
+    let refined = ctx.boundary_levels > 0
+        && known
+        && node.count as usize <= cell
+        && !node.is_leaf()
+        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
     let cell = if refined { (cell / 4).max(1) } else { cell };
     if node.is_leaf() || (known && node.count as usize <= cell) {
         // A visibility cell: one ray along its mean direction (cached), V ∈ {0, 1} over the cell.
-        let w = if wholly_above { node.moment.dot(ctx.n) } else { cosine_mass(ctx.tree, k, ctx.n) };
+        let w = if wholly_above {
+            node.moment.dot(ctx.n)
+        } else {
+            cosine_mass(ctx.tree, k, ctx.n)
+        };
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
-        let v = if cell_visible(ctx, k, cell, &node) { 1.0 } else { 0.0 };
+        let v = if cell_visible(ctx, k, cell, &node) {
+            1.0
+        } else {
+            0.0
+        };
         out.push((k as u32, v as f32));
         return (w, w * v, 0.0);
     }
@@ -426,14 +498,23 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         let free = if ctx.redo {
             ctx.free.binary_search(&(k as u32)).is_ok()
         } else {
-            let f = ctx.tracer.cone_free(ctx.apex, ctx.nf, node.mean_direction.as_vec3().into(), node.cone_cos as f32);
+            let f = ctx.tracer.cone_free(
+                ctx.apex,
+                ctx.nf,
+                node.mean_direction.as_vec3().into(),
+                node.cone_cos as f32,
+            );
             if f {
                 ctx.free.push(k as u32);
             }
             f
         };
         if free {
-            let w = if wholly_above { node.moment.dot(ctx.n) } else { cosine_mass(ctx.tree, k, ctx.n) };
+            let w = if wholly_above {
+                node.moment.dot(ctx.n)
+            } else {
+                cosine_mass(ctx.tree, k, ctx.n)
+            };
             if w <= 0.0 {
                 return (0.0, 0.0, 0.0);
             }
@@ -441,13 +522,18 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             return (w, w, 0.0);
         }
     }
-    // (With the settings' ε, not the one the cap relaxed: a relaxed ε of 0.13 would accept the whole
-    // sphere with V = ½, its error bound diluted by the half below the horizon. The cap coarsens by
-    // merging, which keeps each node's cosine-weighted mean.)
+    // (With the settings' ε, not the one the cap relaxed: a relaxed ε of 0.13 would accept the
+    // whole sphere with V = ½, its error bound diluted by the half below the horizon. The cap
+    // coarsens by merging, which keeps each node's cosine-weighted mean.)
     if !known && 0.5 * max_cos <= 4.0 * ctx.guess_epsilon {
-        // A node so close to the horizon that even a blind guess V = ½ keeps its mean |Ṽ| error within
-        // ε (½ Σ Ω c ≤ ε Ω) needs no rays. The O(1) bound Σ Ω c ≤ max cos · Ω screens candidates.
-        let w = if wholly_above { node.moment.dot(ctx.n) } else { cosine_mass(ctx.tree, k, ctx.n) };
+        // A node so close to the horizon that even a blind guess V = ½ keeps its mean |Ṽ| error
+        // within ε (½ Σ Ω c ≤ ε Ω) needs no rays. The O(1) bound Σ Ω c ≤ max cos · Ω screens
+        // candidates.
+        let w = if wholly_above {
+            node.moment.dot(ctx.n)
+        } else {
+            cosine_mass(ctx.tree, k, ctx.n)
+        };
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
@@ -476,8 +562,8 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     (w, vl + vr, dev)
 }
 
-/// Visibility of a cell (tree node `k`, of cell size `cell`) along its mean direction, traced once per
-/// vertex and cached.
+/// Visibility of a cell (tree node `k`, of cell size `cell`) along its mean direction, traced once
+/// per vertex and cached.
 fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::TreeNode) -> bool {
     let key = ctx.key(node.first, cell);
     let s = &mut *ctx.scratch;
@@ -499,9 +585,9 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
 mod tests {
     use super::*;
 
-    /// The neighbour table against geometry: at each size, two cells are listed as neighbours exactly
-    /// when some leaf of one lies within about a texel and a half (centre to centre) of a leaf of the
-    /// other, and the relation is symmetric.
+    /// The neighbour table against geometry: at each size, two cells are listed as neighbours
+    /// exactly when some leaf of one lies within about a texel and a half (centre to centre) of a
+    /// leaf of the other, and the relation is symmetric.
     #[test]
     fn cell_neighbours_are_the_cells_whose_leaves_touch() {
         let set = DirectionSet::cube(16).unwrap();
@@ -512,7 +598,11 @@ mod tests {
         for size in [16usize, 4] {
             // The cells of this size: the largest nodes of at most `size` leaves.
             let cells = crate::bake::decisions::nodes_of_at_most(&tree, size as u32, 0);
-            let leaves = |k: usize| (nodes[k].first..nodes[k].first + nodes[k].count).map(|l| tree.leaf_directions()[l as usize]).collect::<Vec<_>>();
+            let leaves = |k: usize| {
+                (nodes[k].first..nodes[k].first + nodes[k].count)
+                    .map(|l| tree.leaf_directions()[l as usize])
+                    .collect::<Vec<_>>()
+            };
             let mut listed = 0;
             for &a in &cells {
                 let la = leaves(a);
@@ -521,22 +611,40 @@ mod tests {
                         continue;
                     }
                     let lb = leaves(b);
-                    let closest = la.iter().flat_map(|x| lb.iter().map(move |y| x.dot(*y).clamp(-1.0, 1.0).acos())).fold(f64::INFINITY, f64::min);
+                    let closest = la
+                        .iter()
+                        .flat_map(|x| lb.iter().map(move |y| x.dot(*y).clamp(-1.0, 1.0).acos()))
+                        .fold(f64::INFINITY, f64::min);
                     let near = table.of(a).contains(&(b as u32));
-                    assert_eq!(near, table.of(b).contains(&(a as u32)), "not symmetric: {a} {b}");
-                    // Edge neighbours are about a nominal texel apart, diagonal ones ~1.41 (up to 1.63 at face
-                    // centres, where texels are widest); leaves two steps away are ≥ 1.2 texels apart even
-                    // at cube corners, where texels are narrowest.
+                    assert_eq!(
+                        near,
+                        table.of(b).contains(&(a as u32)),
+                        "not symmetric: {a} {b}"
+                    );
+                    // Edge neighbours are about a nominal texel apart, diagonal ones ~1.41 (up to
+                    // 1.63 at face centres, where texels are widest); leaves two steps away are ≥
+                    // 1.2 texels apart even at cube corners, where texels are narrowest.
                     if closest < 0.9 * texel {
-                        assert!(near, "size {size}: cells {a} and {b} have leaves {closest} apart but are not neighbours");
+                        assert!(
+                            near,
+                            "size {size}: cells {a} and {b} have leaves {closest} apart but are not neighbours"
+                        );
                     }
                     if near {
                         listed += 1;
-                        assert!(closest < 1.8 * texel, "size {size}: cells {a} and {b} listed but {:.2} texels apart", closest / texel);
+                        assert!(
+                            closest < 1.8 * texel,
+                            "size {size}: cells {a} and {b} listed but {:.2} texels apart",
+                            closest / texel
+                        );
                     }
                 }
             }
-            assert!(listed >= 3 * cells.len(), "size {size}: {listed} neighbour pairs for {} cells", cells.len());
+            assert!(
+                listed >= 3 * cells.len(),
+                "size {size}: {listed} neighbour pairs for {} cells",
+                cells.len()
+            );
         }
         // Leaves (size 1) cannot be refined, so they get no lists; no levels, no table.
         assert!(CellNeighbours::new(&set, &tree, 16, 0).of(5).is_empty());

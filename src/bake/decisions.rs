@@ -1,23 +1,26 @@
 //! What the scene calls for, decided before tracing and reported with reasons.
 //!
-//! - (a) [`decide_occlusion`]: must visibility be traced at all? Exact test: for every vertex, is the
-//!   cone of all directions above its tangent plane free of geometry ([`Tracer::cone_free`])? If so no
-//!   ray from any vertex can hit the scene (a convex object), nothing is traced and Ṽ = max(cos, 0).
+//! - (a) [`decide_occlusion`]: must visibility be traced at all? Exact test: for every vertex, is
+//!   the cone of all directions above its tangent plane free of geometry ([`Tracer::cone_free`])?
+//!   If so no ray from any vertex can hit the scene (a convex object), nothing is traced and Ṽ =
+//!   max(cos, 0).
 //! - (b) [`decide_frames`]: is there a tangent field for an anisotropic p(h)? glTF TANGENT, else
 //!   MikkTSpace tangents from TEXCOORD_0, else none — and then the fit must be isotropic.
-//! - (c) [`decide_resolution`]: how fine must the direction set be for this environment? Probe lobes
-//!   with the BRDF's width in wi-space (λ/4 for a half-vector lobe of sharpness λ) are integrated against
-//!   the environment on cube maps of 16, 32 and 64 texels per side and on a 128 reference; the coarsest
-//!   whose worst probe error is below 1 % of the brightest probe is what the light needs. A sun
-//!   concentrates energy at high frequency and pushes the choice up. The BRDF adds its own floor
-//!   ([`brdf_resolution`]: texels at most σ/2 wide); the finer of the two wins.
-//! - (d) [`decide_cell`]: how large may a visibility cell (one ray, V ∈ {0, 1} over the cell) be for
-//!   this scene under this environment? Measured at probe vertices: the irradiance with cells of each
-//!   candidate size against the irradiance with a ray per direction; the coarsest within 2 % wins (else
-//!   the closer). Small bright lights (a studio's softboxes, a window) whose visibility a coarse cell
-//!   gets wrong push it finer; a broad sky does not.
+//! - (c) [`decide_resolution`]: how fine must the direction set be for this environment? Probe
+//!   lobes with the BRDF's width in wi-space (λ/4 for a half-vector lobe of sharpness λ) are
+//!   integrated against the environment on cube maps of 16, 32 and 64 texels per side and on a 128
+//!   reference; the coarsest whose worst probe error is below 1 % of the brightest probe is what
+//!   the light needs. A sun concentrates energy at high frequency and pushes the choice up. The
+//!   BRDF adds its own floor ([`brdf_resolution`]: texels at most σ/2 wide); the finer of the two
+//!   wins.
+//! - (d) [`decide_cell`]: how large may a visibility cell (one ray, V ∈ {0, 1} over the cell) be
+//!   for this scene under this environment? Measured at probe vertices: the irradiance with cells
+//!   of each candidate size against the irradiance with a ray per direction; the coarsest within 2
+//!   % wins (else the closer). Small bright lights (a studio's softboxes, a window) whose
+//!   visibility a coarse cell gets wrong push it finer; a broad sky does not.
 //! - (e) and (f) are made while baking, from the traced cuts: the mesh refinement
-//!   ([`super::refine`]) and the vertex sampling ([`super::sparse`]); their reasons are stored here too.
+//!   ([`super::refine`]) and the vertex sampling ([`super::sparse`]); their reasons are stored here
+//!   too.
 //!
 //! Inputs: the mesh, the tracer, the environment, the direction set's tree. Outputs: decisions with
 //! reasons (serialisable, stored in the bake). No IO.
@@ -74,7 +77,8 @@ pub struct Decisions {
     pub refine_reason: String,
     #[serde(default)]
     pub refined_vertices: usize,
-    /// (f) Vertex sampling: why, and how many of the scene's vertices were interpolated, not traced.
+    /// (f) Vertex sampling: why, and how many of the scene's vertices were interpolated, not
+    ///     traced.
     #[serde(default)]
     pub sampling_reason: String,
     #[serde(default)]
@@ -84,21 +88,72 @@ pub struct Decisions {
 impl Decisions {
     /// Each decision and its reason, as `glint bake` prints them (`refined`: the mesh was refined).
     pub fn summary(&self, refined: bool) -> Vec<(String, &str)> {
-        let boundary = if self.boundary_levels > 0 { format!("{} boundary level(s)", self.boundary_levels) } else { "no boundary refinement".into() };
+        let boundary = if self.boundary_levels > 0 {
+            format!("{} boundary level(s)", self.boundary_levels)
+        } else {
+            "no boundary refinement".into()
+        };
         vec![
-            ((if self.trace_visibility { "trace visibility" } else { "no ray tracing" }).into(), self.trace_reason.as_str()),
-            ((if self.anisotropic { "anisotropic frame" } else { "isotropic fit" }).into(), &self.frame_reason),
-            (format!("{} directions ({} per face)", 6 * self.resolution * self.resolution, self.resolution), &self.resolution_reason),
-            (format!("visibility cells of {}°", self.cell_deg), &self.cell_reason),
+            (
+                (if self.trace_visibility {
+                    "trace visibility"
+                } else {
+                    "no ray tracing"
+                })
+                .into(),
+                self.trace_reason.as_str(),
+            ),
+            (
+                (if self.anisotropic {
+                    "anisotropic frame"
+                } else {
+                    "isotropic fit"
+                })
+                .into(),
+                &self.frame_reason,
+            ),
+            (
+                format!(
+                    "{} directions ({} per face)",
+                    6 * self.resolution * self.resolution,
+                    self.resolution
+                ),
+                &self.resolution_reason,
+            ),
+            (
+                format!("visibility cells of {}°", self.cell_deg),
+                &self.cell_reason,
+            ),
             (boundary, &self.boundary_reason),
-            ((if refined { "refined mesh" } else { "mesh as it is" }).into(), &self.refine_reason),
-            ((if self.interpolated_vertices > 0 { "vertex sampling" } else { "every vertex traced" }).into(), &self.sampling_reason),
+            (
+                (if refined {
+                    "refined mesh"
+                } else {
+                    "mesh as it is"
+                })
+                .into(),
+                &self.refine_reason,
+            ),
+            (
+                (if self.interpolated_vertices > 0 {
+                    "vertex sampling"
+                } else {
+                    "every vertex traced"
+                })
+                .into(),
+                &self.sampling_reason,
+            ),
         ]
     }
 }
 
 /// (a): (trace?, reason).
-pub fn decide_occlusion(positions: &[DVec3], normals: &[DVec3], offset: f64, tracer: &Tracer) -> (bool, String) {
+pub fn decide_occlusion(
+    positions: &[DVec3],
+    normals: &[DVec3],
+    offset: f64,
+    tracer: &Tracer,
+) -> (bool, String) {
     let blocked = positions
         .par_iter()
         .zip(normals)
@@ -117,21 +172,32 @@ pub fn decide_occlusion(positions: &[DVec3], normals: &[DVec3], offset: f64, tra
             ),
         )
     } else {
-        (true, format!("{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced", positions.len()))
+        (
+            true,
+            format!(
+                "{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced",
+                positions.len()
+            ),
+        )
     }
 }
 
 /// (b): tangents for the shading frames, with the decision.
 pub fn decide_frames(mesh: &Mesh) -> (FrameSource, Option<Vec<Vec4>>, String) {
     if let Some(t) = &mesh.tangents {
-        return (FrameSource::GltfTangents, Some(t.clone()), "the glTF file has TANGENT: anisotropic lobes follow it".into());
+        return (
+            FrameSource::GltfTangents,
+            Some(t.clone()),
+            "the glTF file has TANGENT: anisotropic lobes follow it".into(),
+        );
     }
     if let Some(uvs) = &mesh.uvs {
         if let Some(t) = mikktspace_tangents(mesh, uvs) {
             return (
                 FrameSource::MikktspaceFromUvs,
                 Some(t),
-                "no TANGENT but TEXCOORD_0 is present: MikkTSpace tangents generated from the UVs".into(),
+                "no TANGENT but TEXCOORD_0 is present: MikkTSpace tangents generated from the UVs"
+                    .into(),
             );
         }
         return (FrameSource::None, None, "TEXCOORD_0 is present but MikkTSpace could not build tangents from it (degenerate UVs): the fit must be isotropic".into());
@@ -154,17 +220,28 @@ impl bevy_mikktspace::Geometry for MikkMesh<'_> {
     }
     fn position(&self, face: usize, vert: usize) -> [f32; 3] {
         let i = self.mesh.triangles[face][vert] as usize;
-        self.mesh.positions.get(i).map_or([0.0; 3], |p| p.to_array())
+        self.mesh
+            .positions
+            .get(i)
+            .map_or([0.0; 3], |p| p.to_array())
     }
     fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
         let i = self.mesh.triangles[face][vert] as usize;
-        self.mesh.normals.get(i).map_or([0.0, 0.0, 1.0], |n| n.to_array())
+        self.mesh
+            .normals
+            .get(i)
+            .map_or([0.0, 0.0, 1.0], |n| n.to_array())
     }
     fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
         let i = self.mesh.triangles[face][vert] as usize;
         self.uvs.get(i).map_or([0.0; 2], |t| t.to_array())
     }
-    fn set_tangent(&mut self, tangent_space: Option<bevy_mikktspace::TangentSpace>, face: usize, vert: usize) {
+    fn set_tangent(
+        &mut self,
+        tangent_space: Option<bevy_mikktspace::TangentSpace>,
+        face: usize,
+        vert: usize,
+    ) {
         let i = self.mesh.triangles[face][vert] as usize;
         if let (Some(ts), Some(slot)) = (tangent_space, self.out.get_mut(i)) {
             *slot = Vec4::from_array(ts.tangent_encoded());
@@ -172,12 +249,21 @@ impl bevy_mikktspace::Geometry for MikkMesh<'_> {
     }
 }
 
-/// Per-vertex MikkTSpace tangents (xyz, w = handedness). Vertices shared by faces whose tangents differ
-/// keep the last one written (glint does not split vertices; seams keep the importer's vertex split).
+/// Per-vertex MikkTSpace tangents (xyz, w = handedness). Vertices shared by faces whose tangents
+/// differ keep the last one written (glint does not split vertices; seams keep the importer's
+/// vertex split).
 fn mikktspace_tangents(mesh: &Mesh, uvs: &[glam::Vec2]) -> Option<Vec<Vec4>> {
-    let mut geometry = MikkMesh { mesh, uvs, out: vec![Vec4::ZERO; mesh.positions.len()] };
+    let mut geometry = MikkMesh {
+        mesh,
+        uvs,
+        out: vec![Vec4::ZERO; mesh.positions.len()],
+    };
     bevy_mikktspace::generate_tangents(&mut geometry).ok()?;
-    let usable = geometry.out.iter().filter(|t| t.truncate().length_squared() > 0.5).count();
+    let usable = geometry
+        .out
+        .iter()
+        .filter(|t| t.truncate().length_squared() > 0.5)
+        .count();
     (usable * 2 >= geometry.out.len()).then_some(geometry.out)
 }
 
@@ -187,18 +273,21 @@ pub const RESOLUTION_REFERENCE: usize = 128;
 /// Worst probe error (relative to the brightest probe) that a resolution may have.
 pub const RESOLUTION_TOLERANCE: f64 = 0.01;
 
-/// The coarsest candidate whose texels (90°/n across) are at most σ/2 wide, so that the transfer can
-/// evaluate the BRDF at one direction per texel: n ≥ π/σ. Measured (tests/transfer.rs, suzanne): T is
-/// 1.03 % off direct integration at n = 32 and 0.59 % at n = 64 for σ = π/40.
+/// The coarsest candidate whose texels (90°/n across) are at most σ/2 wide, so that the transfer
+/// can evaluate the BRDF at one direction per texel: n ≥ π/σ. Measured (tests/transfer.rs,
+/// suzanne): T is 1.03 % off direct integration at n = 32 and 0.59 % at n = 64 for σ = π/40.
 pub fn brdf_resolution(lambda: f64) -> usize {
     let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(0.08);
     let needed = std::f64::consts::PI / sigma;
-    [16, 32, 64, 128, 256].into_iter().find(|&n| n as f64 >= needed).unwrap_or(256)
+    [16, 32, 64, 128, 256]
+        .into_iter()
+        .find(|&n| n as f64 >= needed)
+        .unwrap_or(256)
 }
 
-/// (c): (resolution, reason, probe errors). `lambda` is the half-vector lobe sharpness the BRDF will use.
-/// The result is the finer of what the environment needs (probe lobes) and what the BRDF needs
-/// ([`brdf_resolution`]).
+/// (c): (resolution, reason, probe errors). `lambda` is the half-vector lobe sharpness the BRDF
+/// will use. The result is the finer of what the environment needs (probe lobes) and what the BRDF
+/// needs ([`brdf_resolution`]).
 pub fn decide_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
     let (n_light, light_reason, errors) = light_resolution(env, lambda);
     let n_brdf = brdf_resolution(lambda);
@@ -218,9 +307,15 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
     let lambda_wi = lambda / 4.0;
     // Probe axes over the whole sphere (two Fibonacci hemispheres).
     let mut probes = fibonacci_hemisphere(64);
-    probes.extend(fibonacci_hemisphere(64).into_iter().map(|d| DVec3::new(d.x, d.y, -d.z)));
+    probes.extend(
+        fibonacci_hemisphere(64)
+            .into_iter()
+            .map(|d| DVec3::new(d.x, d.y, -d.z)),
+    );
     let integrate = |n: usize| -> Vec<f64> {
-        let Ok(set) = DirectionSet::cube(n) else { return vec![0.0; probes.len()] };
+        let Ok(set) = DirectionSet::cube(n) else {
+            return vec![0.0; probes.len()];
+        };
         let radiance = texel_radiance_from(env, &set, 0.0);
         let cut = srbf::support_cosine(lambda_wi, 30.0);
         probes
@@ -232,18 +327,27 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
                     .zip(&radiance)
                     .filter_map(|((d, w), l)| {
                         let x = d.dot(*xi);
-                        (x > cut).then(|| w * srbf::gaussian(x, lambda_wi) * (l[0] + l[1] + l[2]) / 3.0)
+                        (x > cut)
+                            .then(|| w * srbf::gaussian(x, lambda_wi) * (l[0] + l[1] + l[2]) / 3.0)
                     })
                     .sum()
             })
             .collect()
     };
     let reference = integrate(RESOLUTION_REFERENCE);
-    let scale = reference.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    let scale = reference
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
     let mut errors = Vec::new();
     for n in RESOLUTION_CANDIDATES {
         let values = integrate(n);
-        let worst = values.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0f64, f64::max) / scale;
+        let worst = values
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max)
+            / scale;
         errors.push((n, worst));
         if worst <= RESOLUTION_TOLERANCE {
             let reason = format!(
@@ -261,9 +365,9 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
     (RESOLUTION_REFERENCE, reason, errors)
 }
 
-/// Candidate visibility-cell sizes for (d), coarsest first. 22.5° is not a candidate: on studio_1k it
-/// put the bunny's frame 7.5 % off the Monte Carlo truth (`glint study`), and the specular part, which
-/// the irradiance probe does not see, suffers first.
+/// Candidate visibility-cell sizes for (d), coarsest first. 22.5° is not a candidate: on studio_1k
+/// it put the bunny's frame 7.5 % off the Monte Carlo truth (`glint study`), and the specular part,
+/// which the irradiance probe does not see, suffers first.
 pub const CELL_CANDIDATES_DEG: [f64; 2] = [11.25, 5.625];
 /// Largest relative RMS irradiance error at the probe vertices that a cell size may cause.
 pub const CELL_TOLERANCE: f64 = 0.02;
@@ -280,27 +384,52 @@ pub fn cell_leaves(resolution: usize, deg: f64) -> usize {
 /// The cells of at most `max_leaves` leaves in words: the tree's largest nodes that small, e.g. "48
 /// directions each" for at most 64 on a 6×64² set, whose node sizes are 3·2^k.
 pub fn cell_size_words(tree: &LightTree, max_leaves: usize) -> String {
-    let sizes: Vec<u32> = nodes_of_at_most(tree, max_leaves as u32, 0).iter().map(|&k| tree.nodes()[k].count).collect();
-    let (lo, hi) = (sizes.iter().copied().min().unwrap_or(0), sizes.iter().copied().max().unwrap_or(0));
-    if lo == hi { format!("{hi} directions each") } else { format!("{lo}–{hi} directions each") }
+    let sizes: Vec<u32> = nodes_of_at_most(tree, max_leaves as u32, 0)
+        .iter()
+        .map(|&k| tree.nodes()[k].count)
+        .collect();
+    let (lo, hi) = (
+        sizes.iter().copied().min().unwrap_or(0),
+        sizes.iter().copied().max().unwrap_or(0),
+    );
+    if lo == hi {
+        format!("{hi} directions each")
+    } else {
+        format!("{lo}–{hi} directions each")
+    }
 }
 
 /// (d): (cell size in degrees, reason, probe errors).
 ///
 /// At [`CELL_PROBES`] vertices (ray origins and normals in `origins`) the irradiance of the
 /// environment's luminance (at rotation 0) is summed three ways: with a ray per direction (the
-/// reference), and with cells of each candidate size, where, as in the bake, one ray along the cell's
-/// mean direction decides V for the whole cell. Cells inside a coarsest cell whose cone is free of
-/// geometry ([`Tracer::cone_free`], exact) are visible for every size and cost no ray. The coarsest
-/// candidate whose relative RMS error over the probes is within [`CELL_TOLERANCE`] is chosen; if none is,
-/// the one measured closest, and the reason says how far off it stays.
-pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, origins: &[(DVec3, DVec3)], tracer: &Tracer) -> (f64, String, Vec<(f64, f64)>) {
+/// reference), and with cells of each candidate size, where, as in the bake, one ray along the
+/// cell's mean direction decides V for the whole cell. Cells inside a coarsest cell whose cone is
+/// free of geometry ([`Tracer::cone_free`], exact) are visible for every size and cost no ray. The
+/// coarsest candidate whose relative RMS error over the probes is within [`CELL_TOLERANCE`] is
+/// chosen; if none is, the one measured closest, and the reason says how far off it stays.
+pub fn decide_cell(
+    env: &LightSource,
+    set: &DirectionSet,
+    tree: &LightTree,
+    origins: &[(DVec3, DVec3)],
+    tracer: &Tracer,
+) -> (f64, String, Vec<(f64, f64)>) {
     let radiance = texel_radiance_from(env, set, 0.0);
-    let luminance: Vec<f64> = tree.leaf_texels().iter().map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0).collect();
+    let luminance: Vec<f64> = tree
+        .leaf_texels()
+        .iter()
+        .map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0)
+        .collect();
     let resolution = set.resolution();
-    let cells: Vec<Vec<usize>> = CELL_CANDIDATES_DEG.iter().map(|&deg| nodes_of_at_most(tree, cell_leaves(resolution, deg) as u32, 0)).collect();
+    let cells: Vec<Vec<usize>> = CELL_CANDIDATES_DEG
+        .iter()
+        .map(|&deg| nodes_of_at_most(tree, cell_leaves(resolution, deg) as u32, 0))
+        .collect();
     let count = origins.len().min(CELL_PROBES);
-    let probes: Vec<(DVec3, DVec3)> = (0..count).map(|i| origins[(2 * i + 1) * origins.len() / (2 * count)]).collect();
+    let probes: Vec<(DVec3, DVec3)> = (0..count)
+        .map(|i| origins[(2 * i + 1) * origins.len() / (2 * count)])
+        .collect();
     let nodes = tree.nodes();
     // Per probe: (reference irradiance, irradiance per candidate).
     let sums: Vec<(f64, Vec<f64>)> = probes
@@ -311,7 +440,9 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
             let weight = |l: usize| luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0);
             let node_weight = |k: usize| {
                 let node = nodes[k];
-                (node.first as usize..(node.first + node.count) as usize).map(weight).sum::<f64>()
+                (node.first as usize..(node.first + node.count) as usize)
+                    .map(weight)
+                    .sum::<f64>()
             };
             let mut reference = 0.0;
             let mut per_candidate = vec![0.0; cells.len()];
@@ -321,22 +452,35 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
                 if w <= 0.0 {
                     continue;
                 }
-                if tracer.cone_free(apex, nf, node.mean_direction.as_vec3().into(), node.cone_cos as f32) {
+                if tracer.cone_free(
+                    apex,
+                    nf,
+                    node.mean_direction.as_vec3().into(),
+                    node.cone_cos as f32,
+                ) {
                     reference += w;
                     per_candidate.iter_mut().for_each(|e| *e += w);
                     continue;
                 }
                 for l in node.first as usize..(node.first + node.count) as usize {
                     let wl = weight(l);
-                    if wl > 0.0 && !tracer.occluded(apex, tree.leaf_directions()[l].as_vec3().into()) {
+                    if wl > 0.0
+                        && !tracer.occluded(apex, tree.leaf_directions()[l].as_vec3().into())
+                    {
                         reference += wl;
                     }
                 }
                 for (c, e) in per_candidate.iter_mut().enumerate() {
                     // (For the coarsest candidate that is the cell k itself.)
-                    for s in nodes_of_at_most(tree, cell_leaves(resolution, CELL_CANDIDATES_DEG[c]) as u32, k) {
+                    for s in nodes_of_at_most(
+                        tree,
+                        cell_leaves(resolution, CELL_CANDIDATES_DEG[c]) as u32,
+                        k,
+                    ) {
                         let ws = node_weight(s);
-                        if ws > 0.0 && !tracer.occluded(apex, nodes[s].mean_direction.as_vec3().into()) {
+                        if ws > 0.0
+                            && !tracer.occluded(apex, nodes[s].mean_direction.as_vec3().into())
+                        {
                             *e += ws;
                         }
                     }
@@ -345,13 +489,26 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
             (reference, per_candidate)
         })
         .collect();
-    let denominator: f64 = sums.iter().map(|(r, _)| r * r).sum::<f64>().max(f64::MIN_POSITIVE);
+    let denominator: f64 = sums
+        .iter()
+        .map(|(r, _)| r * r)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
     let errors: Vec<(f64, f64)> = CELL_CANDIDATES_DEG
         .iter()
         .enumerate()
-        .map(|(c, &deg)| (deg, (sums.iter().map(|(r, e)| (e[c] - r).powi(2)).sum::<f64>() / denominator).sqrt()))
+        .map(|(c, &deg)| {
+            (
+                deg,
+                (sums.iter().map(|(r, e)| (e[c] - r).powi(2)).sum::<f64>() / denominator).sqrt(),
+            )
+        })
         .collect();
-    let listed = errors.iter().map(|(d, e)| format!("{d}° {:.2} %", e * 100.0)).collect::<Vec<_>>().join(", ");
+    let listed = errors
+        .iter()
+        .map(|(d, e)| format!("{d}° {:.2} %", e * 100.0))
+        .collect::<Vec<_>>()
+        .join(", ");
     if let Some(&(deg, _)) = errors.iter().find(|(_, e)| *e <= CELL_TOLERANCE) {
         let reason = format!(
             "{deg}° cells ({}): at {count} probe vertices the irradiance with one ray per cell is within {:.0} % (RMS) of a ray per direction ({listed})",
@@ -360,10 +517,16 @@ pub fn decide_cell(env: &LightSource, set: &DirectionSet, tree: &LightTree, orig
         );
         return (deg, reason, errors);
     }
-    // None is within tolerance: the candidate measured closest (the coarser on a tie). Finer cells are
-    // closer on average, but not always at the probes (teapot under interior_1k: 11.25° 3.3 %, 5.625°
-    // 3.5 %), and then the extra rays buy nothing.
-    let (deg, _) = errors.iter().copied().fold((CELL_CANDIDATES_DEG[0], f64::INFINITY), |best, e| if e.1 < best.1 { e } else { best });
+    // None is within tolerance: the candidate measured closest (the coarser on a tie). Finer cells
+    // are closer on average, but not always at the probes (teapot under interior_1k: 11.25° 3.3 %,
+    // 5.625° 3.5 %), and then the extra rays buy nothing.
+    let (deg, _) =
+        errors
+            .iter()
+            .copied()
+            .fold((CELL_CANDIDATES_DEG[0], f64::INFINITY), |best, e| {
+                if e.1 < best.1 { e } else { best }
+            });
     let reason = format!(
         "{deg}° cells ({}), the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
         cell_size_words(tree, cell_leaves(resolution, deg)),
@@ -378,16 +541,26 @@ pub const BOUNDARY_LEVELS: u32 = 2;
 /// (d), second part: how many times cells at a shadow edge are traced again as cells half as wide
 /// ([`crate::bake::CutSettings::boundary_levels`]), and why.
 ///
-/// One ray per cell point-samples visibility, so a shadow edge that crosses a cell moves to the cell's
-/// border, and the error does not average out over a light as the irradiance's does: a sharp lobe's
-/// highlight sees it whole. Where the environment's small bright lights made the coarsest candidate miss
-/// its shadows at the probes (the cell decided is finer), their shadow edges are sharp, and the cells
-/// beside a cell of the other visibility are traced at half and at a quarter of the cell's width
-/// ([`BOUNDARY_LEVELS`]). Where the coarsest cell is within tolerance the light is soft and the
-/// refinement is not made (dragon_100k under courtyard_1k: it would double the rays).
-pub fn decide_boundary(explicit: Option<u32>, cell_explicit: bool, traced: bool, cell_deg: f64, probe_errors: &[(f64, f64)]) -> (u32, String) {
+/// One ray per cell point-samples visibility, so a shadow edge that crosses a cell moves to the
+/// cell's border, and the error does not average out over a light as the irradiance's does: a sharp
+/// lobe's highlight sees it whole. Where the environment's small bright lights made the coarsest
+/// candidate miss its shadows at the probes (the cell decided is finer), their shadow edges are
+/// sharp, and the cells beside a cell of the other visibility are traced at half and at a quarter
+/// of the cell's width ([`BOUNDARY_LEVELS`]). Where the coarsest cell is within tolerance the light
+/// is soft and the refinement is not made (dragon_100k under courtyard_1k: it would double the
+/// rays).
+pub fn decide_boundary(
+    explicit: Option<u32>,
+    cell_explicit: bool,
+    traced: bool,
+    cell_deg: f64,
+    probe_errors: &[(f64, f64)],
+) -> (u32, String) {
     if let Some(levels) = explicit {
-        return (levels, format!("boundary refinement set explicitly to {levels} level(s)"));
+        return (
+            levels,
+            format!("boundary refinement set explicitly to {levels} level(s)"),
+        );
     }
     if !traced {
         return (0, "no boundary refinement: no visibility is traced".into());
@@ -406,7 +579,13 @@ pub fn decide_boundary(explicit: Option<u32>, cell_explicit: bool, traced: bool,
                 error * 100.0
             ),
         ),
-        _ => (0, format!("no boundary refinement: {coarsest}° cells are within {:.0} % at the probes, so the light is soft and shadow edges blur over a cell", CELL_TOLERANCE * 100.0)),
+        _ => (
+            0,
+            format!(
+                "no boundary refinement: {coarsest}° cells are within {:.0} % at the probes, so the light is soft and shadow edges blur over a cell",
+                CELL_TOLERANCE * 100.0
+            ),
+        ),
     }
 }
 
@@ -436,7 +615,10 @@ mod tests {
         let (coarse, fine) = (CELL_CANDIDATES_DEG[0], CELL_CANDIDATES_DEG[1]);
         // The coarsest cell missed shadows: sharp lights, refine.
         let missed = [(coarse, 2.0 * CELL_TOLERANCE), (fine, 0.5 * CELL_TOLERANCE)];
-        assert_eq!(decide_boundary(None, false, true, fine, &missed).0, BOUNDARY_LEVELS);
+        assert_eq!(
+            decide_boundary(None, false, true, fine, &missed).0,
+            BOUNDARY_LEVELS
+        );
         // Within tolerance at the coarsest: soft light, no refinement.
         let soft = [(coarse, 0.5 * CELL_TOLERANCE), (fine, 0.2 * CELL_TOLERANCE)];
         assert_eq!(decide_boundary(None, false, true, coarse, &soft).0, 0);
@@ -445,6 +627,9 @@ mod tests {
         assert_eq!(decide_boundary(None, false, false, coarse, &[]).0, 0);
         assert_eq!(decide_boundary(None, true, true, fine, &[]).0, 0);
         let (_, reason) = decide_boundary(None, false, true, fine, &missed);
-        assert!(reason.contains("2.8125°") && reason.contains("1.40625°"), "{reason}");
+        assert!(
+            reason.contains("2.8125°") && reason.contains("1.40625°"),
+            "{reason}"
+        );
     }
 }

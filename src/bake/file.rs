@@ -1,22 +1,23 @@
 //! The bake file: versioned, checksummed, written atomically.
 //!
-//! Layout of `bake.glint` (little-endian):
-//! `b"GLINTBAK"` · u32 format version · u32 header length · header (JSON: [`BakeHeader`]) ·
-//! u32 × (V + 1) offsets · u32 × E nodes · u16 × E visibility (padded to 4 bytes) · the refinement
-//! (u32 P · P × u32 pair of parent vertices · u32 T · T × u32 triple of refined triangles; P = T = 0 when
-//! the mesh was not refined) · u64 FNV-1a of every byte before it. A `bake.json` beside it repeats the header for people.
+//! Layout of `bake.glint` (little-endian): `b"GLINTBAK"` · u32 format version · u32 header length ·
+//! header (JSON: [`BakeHeader`]) · u32 × (V + 1) offsets · u32 × E nodes · u16 × E visibility
+//! (padded to 4 bytes) · the refinement (u32 P · P × u32 pair of parent vertices · u32 T · T × u32
+//! triple of refined triangles; P = T = 0 when the mesh was not refined) · u64 FNV-1a of every byte
+//! before it. A `bake.json` beside it repeats the header for people.
 //!
-//! Inputs: a [`BakeHeader`], [`Cuts`] and the [`Refinement`]. Outputs: the file, or the parsed bake. Invariants: a file that
-//! is truncated, corrupt (checksum), of another format version, or internally inconsistent is refused
-//! with a one-line reason — the caller rebuilds; a write never leaves a half-written file.
+//! Inputs: a [`BakeHeader`], [`Cuts`] and the [`Refinement`]. Outputs: the file, or the parsed
+//! bake. Invariants: a file that is truncated, corrupt (checksum), of another format version, or
+//! internally inconsistent is refused with a one-line reason — the caller rebuilds; a write never
+//! leaves a half-written file.
 
 use super::{BakeSettings, BakeStats, Cuts, Decisions, Refinement};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Current format version; bump on any change of layout or meaning, or of how the same inputs are
-/// baked (so that a bake made the old way is rebuilt, not reused). 6: vertices traced after all take
-/// their sampled neighbours' agreed visibility cells (2026-11-24).
+/// baked (so that a bake made the old way is rebuilt, not reused). 6: vertices traced after all
+/// take their sampled neighbours' agreed visibility cells (2026-11-24).
 pub const FORMAT_VERSION: u32 = 6;
 const MAGIC: &[u8; 8] = b"GLINTBAK";
 
@@ -41,11 +42,18 @@ pub struct BakeHeader {
 #[derive(Debug, thiserror::Error)]
 pub enum BakeFileError {
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: not a glint bake (bad magic bytes)")]
     NotABake { path: PathBuf },
     #[error("{path}: bake format version {found}, this glint reads version {expected}")]
-    Version { path: PathBuf, found: u32, expected: u32 },
+    Version {
+        path: PathBuf,
+        found: u32,
+        expected: u32,
+    },
     #[error("{path}: truncated ({what})")]
     Truncated { path: PathBuf, what: String },
     #[error("{path}: checksum mismatch (the file is corrupt)")]
@@ -70,7 +78,10 @@ pub fn fnv1a64(bytes: &[u8]) -> u64 {
 
 /// Hex FNV-1a of a file's bytes.
 pub fn hash_file(path: &Path) -> Result<String, BakeFileError> {
-    let bytes = std::fs::read(path).map_err(|source| BakeFileError::Io { path: path.to_path_buf(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| BakeFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     Ok(format!("{:016x}", fnv1a64(&bytes)))
 }
 
@@ -108,8 +119,16 @@ pub fn encode(header: &BakeHeader, cuts: &Cuts, refinement: &Refinement) -> Vec<
 }
 
 /// Writes `bake.glint` and `bake.json` into `dir` (created if missing), atomically.
-pub fn write(dir: &Path, header: &BakeHeader, cuts: &Cuts, refinement: &Refinement) -> Result<PathBuf, BakeFileError> {
-    std::fs::create_dir_all(dir).map_err(|source| BakeFileError::Io { path: dir.to_path_buf(), source })?;
+pub fn write(
+    dir: &Path,
+    header: &BakeHeader,
+    cuts: &Cuts,
+    refinement: &Refinement,
+) -> Result<PathBuf, BakeFileError> {
+    std::fs::create_dir_all(dir).map_err(|source| BakeFileError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let path = dir.join("bake.glint");
     glint_exporters::write_atomic(&path, &encode(header, cuts, refinement))?;
     let json = serde_json::to_vec_pretty(header).unwrap_or_default();
@@ -119,74 +138,156 @@ pub fn write(dir: &Path, header: &BakeHeader, cuts: &Cuts, refinement: &Refineme
 
 /// Reads and checks a bake file (`bake.glint`, or a folder holding one).
 pub fn read(path: &Path) -> Result<(BakeHeader, Cuts, Refinement), BakeFileError> {
-    let path = if path.is_dir() { path.join("bake.glint") } else { path.to_path_buf() };
-    let bytes = std::fs::read(&path).map_err(|source| BakeFileError::Io { path: path.clone(), source })?;
+    let path = if path.is_dir() {
+        path.join("bake.glint")
+    } else {
+        path.to_path_buf()
+    };
+    let bytes = std::fs::read(&path).map_err(|source| BakeFileError::Io {
+        path: path.clone(),
+        source,
+    })?;
     decode(&path, &bytes)
 }
 
 /// Parses bytes of a bake file (see [`read`]).
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement), BakeFileError> {
     let p = || path.to_path_buf();
-    let truncated = |what: &str| BakeFileError::Truncated { path: p(), what: what.into() };
+    let truncated = |what: &str| BakeFileError::Truncated {
+        path: p(),
+        what: what.into(),
+    };
     if bytes.len() < 8 || &bytes[..8] != MAGIC {
-        return Err(if bytes.len() < 8 { truncated("no header") } else { BakeFileError::NotABake { path: p() } });
+        return Err(if bytes.len() < 8 {
+            truncated("no header")
+        } else {
+            BakeFileError::NotABake { path: p() }
+        });
     }
-    let u32_at = |at: usize| -> Option<u32> { bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])) };
+    let u32_at = |at: usize| -> Option<u32> {
+        bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
     let version = u32_at(8).ok_or_else(|| truncated("no version"))?;
     if version != FORMAT_VERSION {
-        return Err(BakeFileError::Version { path: p(), found: version, expected: FORMAT_VERSION });
+        return Err(BakeFileError::Version {
+            path: p(),
+            found: version,
+            expected: FORMAT_VERSION,
+        });
     }
     if bytes.len() < 24 {
         return Err(truncated("shorter than the fixed header"));
     }
     let (body, sum) = bytes.split_at(bytes.len() - 8);
-    let stored = u64::from_le_bytes([sum[0], sum[1], sum[2], sum[3], sum[4], sum[5], sum[6], sum[7]]);
+    let stored = u64::from_le_bytes([
+        sum[0], sum[1], sum[2], sum[3], sum[4], sum[5], sum[6], sum[7],
+    ]);
     let header_len = u32_at(12).ok_or_else(|| truncated("no header length"))? as usize;
-    let header_end = 16usize.checked_add(header_len).filter(|&e| e <= body.len()).ok_or_else(|| truncated("header"))?;
+    let header_end = 16usize
+        .checked_add(header_len)
+        .filter(|&e| e <= body.len())
+        .ok_or_else(|| truncated("header"))?;
     if fnv1a64(body) != stored {
         return Err(BakeFileError::Checksum { path: p() });
     }
-    let header: BakeHeader = serde_json::from_slice(&body[16..header_end])
-        .map_err(|e| BakeFileError::Header { path: p(), message: e.to_string() })?;
+    let header: BakeHeader =
+        serde_json::from_slice(&body[16..header_end]).map_err(|e| BakeFileError::Header {
+            path: p(),
+            message: e.to_string(),
+        })?;
     let v = header.vertex_count;
-    let offsets_end = (v + 1).checked_mul(4).and_then(|n| n.checked_add(header_end)).filter(|&e| e <= body.len()).ok_or_else(|| truncated("offsets"))?;
-    let offsets: Vec<u32> = body[header_end..offsets_end].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let offsets_end = (v + 1)
+        .checked_mul(4)
+        .and_then(|n| n.checked_add(header_end))
+        .filter(|&e| e <= body.len())
+        .ok_or_else(|| truncated("offsets"))?;
+    let offsets: Vec<u32> = body[header_end..offsets_end]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
     let e = offsets.last().copied().unwrap_or(0) as usize;
     if offsets.first() != Some(&0) || offsets.windows(2).any(|w| w[0] > w[1]) {
-        return Err(BakeFileError::Inconsistent { path: p(), message: "offsets are not ascending from 0".into() });
+        return Err(BakeFileError::Inconsistent {
+            path: p(),
+            message: "offsets are not ascending from 0".into(),
+        });
     }
     let padded = e * 2 + (e % 2) * 2;
     let cuts_end = offsets_end + e * 4 + padded;
     if body.len() < cuts_end {
         return Err(truncated("cut data"));
     }
-    let nodes: Vec<u32> = body[offsets_end..offsets_end + e * 4].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+    let nodes: Vec<u32> = body[offsets_end..offsets_end + e * 4]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
     let vis_start = offsets_end + e * 4;
-    let visibility: Vec<u16> = body[vis_start..vis_start + e * 2].chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+    let visibility: Vec<u16> = body[vis_start..vis_start + e * 2]
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
     let node_count = 2 * 6 * header.decisions.resolution * header.decisions.resolution;
     if nodes.iter().any(|&n| n as usize >= node_count) {
-        return Err(BakeFileError::Inconsistent { path: p(), message: "a cut names a node outside the light tree".into() });
+        return Err(BakeFileError::Inconsistent {
+            path: p(),
+            message: "a cut names a node outside the light tree".into(),
+        });
     }
     // The refinement: a count, then that many groups of `width` u32s.
     let mut at = cuts_end;
     let mut groups = |width: usize, what: &str| -> Result<Vec<u32>, BakeFileError> {
-        let count = u32_at(at).filter(|_| at + 4 <= body.len()).ok_or_else(|| truncated(what))? as usize;
-        let end = count.checked_mul(4 * width).and_then(|n| n.checked_add(at + 4)).filter(|&e| e <= body.len()).ok_or_else(|| truncated(what))?;
-        let out = body[at + 4..end].chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let count = u32_at(at)
+            .filter(|_| at + 4 <= body.len())
+            .ok_or_else(|| truncated(what))? as usize;
+        let end = count
+            .checked_mul(4 * width)
+            .and_then(|n| n.checked_add(at + 4))
+            .filter(|&e| e <= body.len())
+            .ok_or_else(|| truncated(what))?;
+        let out = body[at + 4..end]
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
         at = end;
         Ok(out)
     };
-    let parents: Vec<[u32; 2]> = groups(2, "refinement vertices")?.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
-    let triangles: Vec<[u32; 3]> = groups(3, "refinement triangles")?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let parents: Vec<[u32; 2]> = groups(2, "refinement vertices")?
+        .chunks_exact(2)
+        .map(|c| [c[0], c[1]])
+        .collect();
+    let triangles: Vec<[u32; 3]> = groups(3, "refinement triangles")?
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
     if at != body.len() {
-        return Err(BakeFileError::Inconsistent { path: p(), message: format!("{} bytes after the refinement", body.len() - at) });
+        return Err(BakeFileError::Inconsistent {
+            path: p(),
+            message: format!("{} bytes after the refinement", body.len() - at),
+        });
     }
     let refinement = Refinement { parents, triangles };
     // Every vertex of the refined mesh has a cut.
     if !refinement.is_empty() && header.vertex_count < refinement.parents.len() {
-        return Err(BakeFileError::Inconsistent { path: p(), message: format!("{} cuts for {} refinement vertices", header.vertex_count, refinement.parents.len()) });
+        return Err(BakeFileError::Inconsistent {
+            path: p(),
+            message: format!(
+                "{} cuts for {} refinement vertices",
+                header.vertex_count,
+                refinement.parents.len()
+            ),
+        });
     }
-    Ok((header, Cuts { offsets, nodes, visibility }, refinement))
+    Ok((
+        header,
+        Cuts {
+            offsets,
+            nodes,
+            visibility,
+        },
+        refinement,
+    ))
 }
 
 /// What [`bake_or_reuse`] did.
@@ -229,10 +330,23 @@ pub fn bake_or_reuse(
     let mut rebuild_reason = None;
     if existing.exists() && !force {
         match read(&existing) {
-            Ok((header, _, _)) if header.scene_hash == scene_hash && header.env_hash == env_hash && header.settings == settings => {
-                return Ok(BakeOutcome { header, reused: true, rebuild_reason: None });
+            Ok((header, _, _))
+                if header.scene_hash == scene_hash
+                    && header.env_hash == env_hash
+                    && header.settings == settings =>
+            {
+                return Ok(BakeOutcome {
+                    header,
+                    reused: true,
+                    rebuild_reason: None,
+                });
             }
-            Ok(_) => rebuild_reason = Some(format!("{} was made from other inputs or settings; rebuilding", existing.display())),
+            Ok(_) => {
+                rebuild_reason = Some(format!(
+                    "{} was made from other inputs or settings; rebuilding",
+                    existing.display()
+                ))
+            }
             Err(e) => rebuild_reason = Some(format!("{e}; rebuilding")),
         }
     }
@@ -251,5 +365,9 @@ pub fn bake_or_reuse(
         vertex_count: bake.cuts.vertex_count(),
     };
     write(dir, &header, &bake.cuts, &bake.refinement)?;
-    Ok(BakeOutcome { header, reused: false, rebuild_reason })
+    Ok(BakeOutcome {
+        header,
+        reused: false,
+        rebuild_reason,
+    })
 }

@@ -1,5 +1,5 @@
-//! A bake read back with the inputs it was made from: what `glint fit`, `render` and `export --bake`
-//! start from.
+//! A bake read back with the inputs it was made from: what `glint fit`, `render` and `export
+//! --bake` start from.
 //!
 //! Inputs: a `bake.glint` (or its folder). Output: [`LoadedBake`] — the header, the cuts, the scene
 //! with its mesh refined as the bake refined it, the environment and the tangent frames.
@@ -44,21 +44,42 @@ impl LoadedBake {
     /// Reads `path` (a `bake.glint` or its folder) and the scene and environment it names.
     pub fn open(path: &Path) -> Result<Self, LoadBakeError> {
         let (header, cuts, refinement) = file::read(path)?;
-        for (input, hash, what) in [(&header.scene_file, &header.scene_hash, "scene"), (&header.env_file, &header.env_hash, "environment")] {
+        for (input, hash, what) in [
+            (&header.scene_file, &header.scene_hash, "scene"),
+            (&header.env_file, &header.env_hash, "environment"),
+        ] {
             if &file::hash_file(input)? != hash {
-                return Err(LoadBakeError::Changed { what, path: input.clone() });
+                return Err(LoadBakeError::Changed {
+                    what,
+                    path: input.clone(),
+                });
             }
         }
         let mut scene = crate::scene::import(&header.scene_file)?;
-        let mismatch = |message: String| LoadBakeError::Mismatch { path: path.to_path_buf(), message };
+        let mismatch = |message: String| LoadBakeError::Mismatch {
+            path: path.to_path_buf(),
+            message,
+        };
         // The cuts belong to the baked (refined) mesh; the surface is the same.
-        scene.mesh = refinement.apply(&scene.mesh).map_err(|e| mismatch(e.to_string()))?;
+        scene.mesh = refinement
+            .apply(&scene.mesh)
+            .map_err(|e| mismatch(e.to_string()))?;
         if scene.mesh.positions.len() != cuts.vertex_count() {
-            return Err(mismatch(format!("the bake has {} cuts for a mesh of {} vertices", cuts.vertex_count(), scene.mesh.positions.len())));
+            return Err(mismatch(format!(
+                "the bake has {} cuts for a mesh of {} vertices",
+                cuts.vertex_count(),
+                scene.mesh.positions.len()
+            )));
         }
         let env = crate::env::load(&header.env_file)?;
         let (_, tangents, _) = super::decisions::decide_frames(&scene.mesh);
-        Ok(Self { header, cuts, scene, env, tangents })
+        Ok(Self {
+            header,
+            cuts,
+            scene,
+            env,
+            tangents,
+        })
     }
 
     /// The direction set and light tree the cuts index.

@@ -1,16 +1,17 @@
-//! The bake: per-vertex visibility cuts through the light tree (method.md §4), with the decisions of
-//! what the scene calls for. View- and light-independent: a new view or a rotated environment needs no
-//! new ray tracing.
+//! The bake: per-vertex visibility cuts through the light tree (method.md §4), with the decisions
+//! of what the scene calls for. View- and light-independent: a new view or a rotated environment
+//! needs no new ray tracing.
 //!
-//! Inputs: an imported [`Scene`], an [`EnvMap`] (only for decision (c): how fine the direction set must
-//! be), [`BakeSettings`]. Outputs: a [`Bake`]: decisions with reasons, the direction-set resolution, and
-//! per vertex a cut (tree nodes in pre-order with their cosine-weighted visible fraction V_k, see
-//! [`cuts`]), plus statistics. [`file`] stores it, versioned and checksummed.
+//! Inputs: an imported [`Scene`], an [`EnvMap`] (only for decision (c): how fine the direction set
+//! must be), [`BakeSettings`]. Outputs: a [`Bake`]: decisions with reasons, the direction-set
+//! resolution, and per vertex a cut (tree nodes in pre-order with their cosine-weighted visible
+//! fraction V_k, see [`cuts`]), plus statistics. [`file`] stores it, versioned and checksummed.
 //!
 //! Invariants: no IO here (see [`file`]); the result is identical for any thread count (a traced
 //! vertex's cut depends on that vertex only, an interpolated one's on its sampled neighbours' cuts,
-//! decision (f), [`sparse`]); vertices can be baked in any order and in parts ([`Baker::bake_set`]),
-//! with the same result, so the app can start fitting once the view's vertices are done.
+//! decision (f), [`sparse`]); vertices can be baked in any order and in parts
+//! ([`Baker::bake_set`]), with the same result, so the app can start fitting once the view's
+//! vertices are done.
 
 pub mod cuts;
 pub mod decisions;
@@ -26,12 +27,12 @@ use crate::scene::Scene;
 use crate::sphere::{DirectionSet, LightTree, SphereError, srbf};
 pub use cuts::{CutScratch, CutSettings, VertexCut};
 pub use decisions::{Decisions, FrameSource};
-pub use refine::{RefineSettings, Refinement};
 use glam::{DVec3, Vec4};
-use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
-pub use runs::{Span, for_each_run};
 pub use loaded::{LoadBakeError, LoadedBake};
+use rayon::prelude::*;
+pub use refine::{RefineSettings, Refinement};
+pub use runs::{Span, for_each_run};
+use serde::{Deserialize, Serialize};
 pub use tracer::Tracer;
 
 /// Bake parameters (each a knob of the accuracy study).
@@ -45,32 +46,44 @@ pub struct BakeSettings {
     pub cut: CutSettings,
     /// Trace even when no ray can hit the scene (to check decision (a)).
     pub force_trace: bool,
-    /// Angular size of a visibility cell (degrees); sets `cut.cell_leaves` for the chosen resolution so
-    /// that the number of rays does not grow with it: cells are the tree's largest nodes of at most
-    /// (n · cell_deg / 90°)² leaves (at most 64 at n = 64 for 11.25°, so nodes of 48: the tree's node
-    /// sizes are 3·2^k; 0 gives a ray per direction). `None` decides it from the scene and the
-    /// environment (decision (d), [`decisions::decide_cell`]): 11.25° unless small bright lights need
-    /// 5.625°. Measured on dragon_100k: 11.25° bakes in 5.8 s, 5.625° in 16.4 s.
+    /// Angular size of a visibility cell (degrees); sets `cut.cell_leaves` for the chosen
+    /// resolution so that the number of rays does not grow with it: cells are the tree's largest
+    /// nodes of at most (n · cell_deg / 90°)² leaves (at most 64 at n = 64 for 11.25°, so nodes of
+    /// 48: the tree's node sizes are 3·2^k; 0 gives a ray per direction). `None` decides it from
+    /// the scene and the environment (decision (d), [`decisions::decide_cell`]): 11.25° unless
+    /// small bright lights need 5.625°. Measured on dragon_100k: 11.25° bakes in 5.8 s, 5.625° in
+    /// 16.4 s.
     pub cell_deg: Option<f64>,
     /// Adaptive refinement of the mesh where visibility changes between vertices (decision (e),
     /// [`refine`]); used by [`Baker::bake_refined`].
     pub refine: RefineSettings,
-    /// Boundary refinement of the visibility cells ([`CutSettings::boundary_levels`]); `None` decides it
-    /// with the cell size (decision (d), [`decisions::decide_boundary`]).
+    /// Boundary refinement of the visibility cells ([`CutSettings::boundary_levels`]); `None`
+    /// decides it with the cell size (decision (d), [`decisions::decide_boundary`]).
     #[serde(default)]
     pub boundary_levels: Option<u32>,
 }
 
 impl Default for BakeSettings {
     fn default() -> Self {
-        Self { resolution: None, sigma: srbf::PAPER_SIGMA, cut: CutSettings::default(), force_trace: false, cell_deg: None, refine: RefineSettings::default(), boundary_levels: None }
+        Self {
+            resolution: None,
+            sigma: srbf::PAPER_SIGMA,
+            cut: CutSettings::default(),
+            force_trace: false,
+            cell_deg: None,
+            refine: RefineSettings::default(),
+            boundary_levels: None,
+        }
     }
 }
 
-/// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of their
-/// positions, ties and `None`s in index order (the `None`s last).
+/// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of
+/// their positions, ties and `None`s in index order (the `None`s last).
 fn morton_order(points: &[Option<(DVec3, DVec3)>]) -> Vec<u32> {
-    let (lo, hi) = points.iter().flatten().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)));
+    let (lo, hi) = points.iter().flatten().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), (p, _)| (lo.min(*p), hi.max(*p)),
+    );
     let scale = DVec3::splat((1u64 << 21) as f64 - 1.0) / (hi - lo).max(DVec3::splat(1e-30));
     // Spreads the low 21 bits of x to every third bit.
     let spread = |x: u64| {
@@ -86,7 +99,8 @@ fn morton_order(points: &[Option<(DVec3, DVec3)>]) -> Vec<u32> {
         .enumerate()
         .map(|(i, point)| {
             let key = point.map_or(u64::MAX, |(p, _)| {
-                let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat((1u64 << 21) as f64 - 1.0));
+                let q =
+                    ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat((1u64 << 21) as f64 - 1.0));
                 spread(q.x as u64) | (spread(q.y as u64) << 1) | (spread(q.z as u64) << 2)
             });
             (key, i as u32)
@@ -123,7 +137,10 @@ pub struct Cuts {
 impl Cuts {
     /// Packs per-vertex cuts (one per vertex, in vertex order).
     pub fn from_vertex_cuts(cuts: &[VertexCut]) -> Self {
-        let mut out = Cuts { offsets: Vec::with_capacity(cuts.len() + 1), ..Default::default() };
+        let mut out = Cuts {
+            offsets: Vec::with_capacity(cuts.len() + 1),
+            ..Default::default()
+        };
         out.offsets.push(0);
         for c in cuts {
             for &(node, v) in &c.entries {
@@ -146,7 +163,10 @@ impl Cuts {
             (Some(&a), Some(&b)) => (a as usize, b as usize),
             _ => (0, 0),
         };
-        self.nodes[a..b].iter().zip(&self.visibility[a..b]).map(|(&n, &q)| (n, q as f32 / 65535.0))
+        self.nodes[a..b]
+            .iter()
+            .zip(&self.visibility[a..b])
+            .map(|(&n, &q)| (n, q as f32 / 65535.0))
     }
 
     /// Mean number of nodes per vertex.
@@ -230,8 +250,8 @@ pub struct Baker<'a> {
     cell_neighbours: cuts::CellNeighbours,
     /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
     cells: Vec<(u32, u32, u32)>,
-    /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced; empty
-    /// when every vertex is traced.
+    /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced;
+    /// empty when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
     sampled: Vec<bool>,
     hemisphere_totals: sparse::HemisphereTotals,
@@ -246,23 +266,36 @@ impl<'a> Baker<'a> {
             return Err(BakeError::EmptyMesh);
         }
         if !(settings.cut.epsilon >= 0.0 && settings.cut.epsilon.is_finite()) {
-            return Err(BakeError::Settings(format!("epsilon must be finite and >= 0, not {}", settings.cut.epsilon)));
+            return Err(BakeError::Settings(format!(
+                "epsilon must be finite and >= 0, not {}",
+                settings.cut.epsilon
+            )));
         }
         if let Some(deg) = settings.cell_deg.filter(|d| !(*d >= 0.0 && d.is_finite())) {
-            return Err(BakeError::Settings(format!("the visibility cell size must be finite and >= 0 degrees, not {deg}")));
+            return Err(BakeError::Settings(format!(
+                "the visibility cell size must be finite and >= 0 degrees, not {deg}"
+            )));
         }
         let lambda = srbf::lambda_from_sigma(settings.sigma)?;
         // The environment split once (clamped base and excess samples) for every decision below.
         let source = crate::light::LightSource::new(env);
         let positions: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
-        let normals: Vec<DVec3> = mesh.normals.iter().map(|n| n.as_dvec3().try_normalize().unwrap_or(DVec3::Y)).collect();
+        let normals: Vec<DVec3> = mesh
+            .normals
+            .iter()
+            .map(|n| n.as_dvec3().try_normalize().unwrap_or(DVec3::Y))
+            .collect();
         let offset = settings.cut.ray_offset * scene.bounds.diagonal().max(1e-12) as f64;
-        // The light's decision (c) and the geometry's (BVH, decision (a)) need nothing of each other:
-        // run side by side, so that the serial parts of each overlap.
+        // The light's decision (c) and the geometry's (BVH, decision (a)) need nothing of each
+        // other: run side by side, so that the serial parts of each overlap.
         let (light, geometry) = rayon::join(
             || -> Result<_, BakeError> {
                 let (resolution, resolution_reason, probe_errors) = match settings.resolution {
-                    Some(n) => (n, format!("set explicitly to {n} per side ({} directions)", 6 * n * n), Vec::new()),
+                    Some(n) => (
+                        n,
+                        format!("set explicitly to {n} per side ({} directions)", 6 * n * n),
+                        Vec::new(),
+                    ),
                     None => decisions::decide_resolution(&source, lambda),
                 };
                 let set = DirectionSet::cube(resolution)?;
@@ -282,30 +315,57 @@ impl<'a> Baker<'a> {
         if settings.force_trace && !needs_trace {
             trace_reason.push_str(" (traced anyway: force_trace)");
         }
-        // Decision (d) traces probes; the tangents (b), the refinement's weights and the vertex sampling
-        // set (f) need nothing of it: side by side.
+        // Decision (d) traces probes; the tangents (b), the refinement's weights and the vertex
+        // sampling set (f) need nothing of it: side by side.
         let interpolate = trace_visibility && settings.refine.interpolate;
-        let ((cell_deg, cell_reason, cell_probe_errors), ((frame_source, tangents, frame_reason), ring_prefix, (vertex_neighbours, sampled))) = rayon::join(
+        let (
+            (cell_deg, cell_reason, cell_probe_errors),
+            ((frame_source, tangents, frame_reason), ring_prefix, (vertex_neighbours, sampled)),
+        ) = rayon::join(
             || match settings.cell_deg {
-                Some(deg) => (deg, format!("set explicitly to {deg}° ({})", decisions::cell_size_words(&tree, decisions::cell_leaves(resolution, deg))), Vec::new()),
+                Some(deg) => (
+                    deg,
+                    format!(
+                        "set explicitly to {deg}° ({})",
+                        decisions::cell_size_words(&tree, decisions::cell_leaves(resolution, deg))
+                    ),
+                    Vec::new(),
+                ),
                 None if !trace_visibility => {
                     let deg = decisions::CELL_CANDIDATES_DEG[0];
-                    (deg, format!("{deg}°: no visibility is traced, so the cell size does not matter"), Vec::new())
+                    (
+                        deg,
+                        format!(
+                            "{deg}°: no visibility is traced, so the cell size does not matter"
+                        ),
+                        Vec::new(),
+                    )
                 }
                 None => {
-                    let origins: Vec<(DVec3, DVec3)> = positions.iter().zip(&normals).map(|(p, n)| (*p + *n * offset, *n)).collect();
+                    let origins: Vec<(DVec3, DVec3)> = positions
+                        .iter()
+                        .zip(&normals)
+                        .map(|(p, n)| (*p + *n * offset, *n))
+                        .collect();
                     decisions::decide_cell(&source, &set, &tree, &origins, &tracer)
                 }
             },
             || {
                 let frames = decisions::decide_frames(mesh);
-                let ring_prefix = if trace_visibility && (settings.refine.rounds > 0 || settings.refine.interpolate) {
-                    refine::ring_weight_prefix(&tree, crate::light::LightSums::from_source(&source, &set, &tree, 0.0).leaf_radiance())
+                let ring_prefix = if trace_visibility
+                    && (settings.refine.rounds > 0 || settings.refine.interpolate)
+                {
+                    refine::ring_weight_prefix(
+                        &tree,
+                        crate::light::LightSums::from_source(&source, &set, &tree, 0.0)
+                            .leaf_radiance(),
+                    )
                 } else {
                     Vec::new()
                 };
                 let sampling = if interpolate {
-                    let neighbours = sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
+                    let neighbours =
+                        sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
                     let sampled = sparse::sampled_vertices(&neighbours);
                     (neighbours, sampled)
                 } else {
@@ -315,11 +375,26 @@ impl<'a> Baker<'a> {
             },
         );
         settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
-        let (boundary_levels, boundary_reason) = decisions::decide_boundary(settings.boundary_levels, settings.cell_deg.is_some(), trace_visibility, cell_deg, &cell_probe_errors);
+        let (boundary_levels, boundary_reason) = decisions::decide_boundary(
+            settings.boundary_levels,
+            settings.cell_deg.is_some(),
+            trace_visibility,
+            cell_deg,
+            &cell_probe_errors,
+        );
         settings.cut.boundary_levels = boundary_levels;
         settings.boundary_levels = Some(boundary_levels);
         settings.cell_deg = Some(cell_deg);
-        let cell_neighbours = if trace_visibility { cuts::CellNeighbours::new(&set, &tree, settings.cut.cell_leaves, settings.cut.boundary_levels) } else { cuts::CellNeighbours::default() };
+        let cell_neighbours = if trace_visibility {
+            cuts::CellNeighbours::new(
+                &set,
+                &tree,
+                settings.cut.cell_leaves,
+                settings.cut.boundary_levels,
+            )
+        } else {
+            cuts::CellNeighbours::default()
+        };
         let decisions = Decisions {
             trace_visibility,
             trace_reason,
@@ -339,8 +414,16 @@ impl<'a> Baker<'a> {
             sampling_reason: String::new(),
             interpolated_vertices: 0,
         };
-        let cells = if trace_visibility { cuts::Prior::cells(&tree, settings.cut.cell_leaves) } else { Vec::new() };
-        let hemisphere_totals = if sampled.is_empty() { sparse::HemisphereTotals::default() } else { sparse::HemisphereTotals::new(&tree, &ring_prefix) };
+        let cells = if trace_visibility {
+            cuts::Prior::cells(&tree, settings.cut.cell_leaves)
+        } else {
+            Vec::new()
+        };
+        let hemisphere_totals = if sampled.is_empty() {
+            sparse::HemisphereTotals::default()
+        } else {
+            sparse::HemisphereTotals::new(&tree, &ring_prefix)
+        };
         Ok(Self {
             scene,
             settings,
@@ -399,23 +482,42 @@ impl<'a> Baker<'a> {
 
     /// Cuts of the given vertices (in parallel), in the order given. `progress` is called with the
     /// number of vertices finished so far (from any thread).
-    pub fn bake_vertices(&self, vertices: &[u32], progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+    pub fn bake_vertices(
+        &self,
+        vertices: &[u32],
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Vec<VertexCut> {
         self.bake_points(&self.points_of(vertices), &[], false, progress)
     }
 
     /// (position, unit normal) of each vertex, `None` for an index out of range.
     fn points_of(&self, vertices: &[u32]) -> Vec<Option<(DVec3, DVec3)>> {
-        vertices.iter().map(|&v| self.positions.get(v as usize).copied().zip(self.normals.get(v as usize).copied())).collect()
+        vertices
+            .iter()
+            .map(|&v| {
+                self.positions
+                    .get(v as usize)
+                    .copied()
+                    .zip(self.normals.get(v as usize).copied())
+            })
+            .collect()
     }
 
     /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
-    /// gives an empty cut. `agreed[i]`, where given, is what point i takes from its traced neighbours
-    /// and `record` whether each records what it knows for others ([`cuts::Prior`]).
-    fn bake_points(&self, points: &[Option<(DVec3, DVec3)>], agreed: &[Vec<[u64; 2]>], record: bool, progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+    /// gives an empty cut. `agreed[i]`, where given, is what point i takes from its traced
+    /// neighbours and `record` whether each records what it knows for others ([`cuts::Prior`]).
+    fn bake_points(
+        &self,
+        points: &[Option<(DVec3, DVec3)>],
+        agreed: &[Vec<[u64; 2]>],
+        record: bool,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Vec<VertexCut> {
         let done = std::sync::atomic::AtomicUsize::new(0);
-        // Traced in Morton order of their positions: each thread takes a contiguous block of that order,
-        // so consecutive vertices' rays cross the same BVH nodes and triangles, which stay in its caches.
-        // Each cut depends on its own point alone, so the order changes the time only.
+        // Traced in Morton order of their positions: each thread takes a contiguous block of that
+        // order, so consecutive vertices' rays cross the same BVH nodes and triangles, which stay
+        // in its caches. Each cut depends on its own point alone, so the order changes the time
+        // only.
         let order = morton_order(points);
         let cuts: Vec<VertexCut> = order
             .par_iter()
@@ -423,13 +525,34 @@ impl<'a> Baker<'a> {
                 || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
                 |scratch, &i| {
                     let cut = if !self.decisions.trace_visibility {
-                        // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
-                        VertexCut { entries: vec![(0, 1.0)], rays: 0, epsilon_used: self.settings.cut.epsilon, interpolated: false, cell_bits: Vec::new() }
+                        // No ray can hit: V = 1 over the whole upper hemisphere, the root covers
+                        // it.
+                        VertexCut {
+                            entries: vec![(0, 1.0)],
+                            rays: 0,
+                            epsilon_used: self.settings.cut.epsilon,
+                            interpolated: false,
+                            cell_bits: Vec::new(),
+                        }
                     } else {
                         match points[i as usize] {
                             Some((p, n)) => {
-                                let prior = cuts::Prior { cells: &self.cells, agreed: agreed.get(i as usize).map_or(&[], |a| a.as_slice()), record };
-                                cuts::vertex_cut(p, n, self.offset, &self.tree, &self.tracer, &self.settings.cut, &self.cell_neighbours, scratch, prior)
+                                let prior = cuts::Prior {
+                                    cells: &self.cells,
+                                    agreed: agreed.get(i as usize).map_or(&[], |a| a.as_slice()),
+                                    record,
+                                };
+                                cuts::vertex_cut(
+                                    p,
+                                    n,
+                                    self.offset,
+                                    &self.tree,
+                                    &self.tracer,
+                                    &self.settings.cut,
+                                    &self.cell_neighbours,
+                                    scratch,
+                                    prior,
+                                )
                             }
                             None => VertexCut::default(),
                         }
@@ -449,9 +572,13 @@ impl<'a> Baker<'a> {
         out
     }
 
-    /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's vertices
-    /// first) only changes which finish first, not the result.
-    pub fn bake_base(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Vec<VertexCut> {
+    /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's
+    /// vertices first) only changes which finish first, not the result.
+    pub fn bake_base(
+        &self,
+        order: Option<&[u32]>,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Vec<VertexCut> {
         let n = self.positions.len();
         let default_order: Vec<u32> = (0..n as u32).collect();
         let order = order.unwrap_or(&default_order);
@@ -461,15 +588,29 @@ impl<'a> Baker<'a> {
         per_vertex
     }
 
-    /// Bakes the vertices of `vertices` not yet `baked` into `per_vertex` (both of the scene's vertex
-    /// count), with vertex sampling (decision (f), [`sparse`]): the sampled vertices among them and the
-    /// sampled neighbours the others need are traced first, then each other vertex is interpolated where
-    /// the rule allows and traced where it does not. The result does not depend on how the vertices are
-    /// split between calls or ordered. `progress` gets the number of vertices finished in this call.
-    pub fn bake_set(&self, vertices: &[u32], per_vertex: &mut [VertexCut], baked: &mut [bool], progress: &(dyn Fn(usize) + Sync)) {
+    /// Bakes the vertices of `vertices` not yet `baked` into `per_vertex` (both of the scene's
+    /// vertex count), with vertex sampling (decision (f), [`sparse`]): the sampled vertices among
+    /// them and the sampled neighbours the others need are traced first, then each other vertex is
+    /// interpolated where the rule allows and traced where it does not. The result does not depend
+    /// on how the vertices are split between calls or ordered. `progress` gets the number of
+    /// vertices finished in this call.
+    pub fn bake_set(
+        &self,
+        vertices: &[u32],
+        per_vertex: &mut [VertexCut],
+        baked: &mut [bool],
+        progress: &(dyn Fn(usize) + Sync),
+    ) {
         let n = self.positions.len().min(per_vertex.len()).min(baked.len());
-        let todo: Vec<u32> = vertices.iter().copied().filter(|&v| (v as usize) < n && !baked[v as usize]).collect();
-        let store = |list: &[u32], cuts: Vec<VertexCut>, per_vertex: &mut [VertexCut], baked: &mut [bool]| {
+        let todo: Vec<u32> = vertices
+            .iter()
+            .copied()
+            .filter(|&v| (v as usize) < n && !baked[v as usize])
+            .collect();
+        let store = |list: &[u32],
+                     cuts: Vec<VertexCut>,
+                     per_vertex: &mut [VertexCut],
+                     baked: &mut [bool]| {
             for (&v, cut) in list.iter().zip(cuts) {
                 per_vertex[v as usize] = cut;
                 baked[v as usize] = true;
@@ -481,7 +622,11 @@ impl<'a> Baker<'a> {
             return;
         }
         // 1. The sampled vertices: those of `todo`, then the sampled neighbours of the others.
-        let mut first: Vec<u32> = todo.iter().copied().filter(|&v| self.sampled[v as usize]).collect();
+        let mut first: Vec<u32> = todo
+            .iter()
+            .copied()
+            .filter(|&v| self.sampled[v as usize])
+            .collect();
         let own = first.len();
         let mut wanted = vec![false; n];
         first.iter().for_each(|&v| wanted[v as usize] = true);
@@ -494,10 +639,16 @@ impl<'a> Baker<'a> {
             }
         }
         // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
-        let cuts = self.bake_points(&self.points_of(&first), &[], true, &|k| progress(k.min(own)));
+        let cuts = self.bake_points(&self.points_of(&first), &[], true, &|k| {
+            progress(k.min(own))
+        });
         store(&first, cuts, per_vertex, baked);
         // 2. The others: interpolated, or traced.
-        let rest: Vec<u32> = todo.iter().copied().filter(|&v| !baked[v as usize]).collect();
+        let rest: Vec<u32> = todo
+            .iter()
+            .copied()
+            .filter(|&v| !baked[v as usize])
+            .collect();
         let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
         let threshold = self.settings.refine.threshold;
         let epsilon = self.settings.cut.epsilon;
@@ -507,10 +658,29 @@ impl<'a> Baker<'a> {
             rest.par_iter()
                 .map(|&v| {
                     let v = v as usize;
-                    let weights = sparse::interpolation_weights(v, &self.positions, &self.normals, &self.vertex_neighbours, &self.sampled, max_edge, threshold, &self.tree, &self.ring_prefix, &cut_of)?;
-                    let cuts: Vec<&[(u32, f32)]> = weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
+                    let weights = sparse::interpolation_weights(
+                        v,
+                        &self.positions,
+                        &self.normals,
+                        &self.vertex_neighbours,
+                        &self.sampled,
+                        max_edge,
+                        threshold,
+                        &self.tree,
+                        &self.ring_prefix,
+                        &cut_of,
+                    )?;
+                    let cuts: Vec<&[(u32, f32)]> =
+                        weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
                     let w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
-                    let (mut cut, uncovered) = sparse::blend_cuts(&self.tree, &cuts, &w, self.normals[v], &self.ring_prefix, self.hemisphere_totals.at(self.normals[v]));
+                    let (mut cut, uncovered) = sparse::blend_cuts(
+                        &self.tree,
+                        &cuts,
+                        &w,
+                        self.normals[v],
+                        &self.ring_prefix,
+                        self.hemisphere_totals.at(self.normals[v]),
+                    );
                     cut.epsilon_used = epsilon;
                     (uncovered <= threshold).then_some(cut)
                 })
@@ -530,21 +700,36 @@ impl<'a> Baker<'a> {
         }
         let done = own + interpolated;
         progress(done);
-        // Where a traced vertex's sampled neighbours all agree on a cell, it takes their visibility.
+        // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
+        // visibility.
         let agreed: Vec<Vec<[u64; 2]>> = {
             let per_vertex: &[VertexCut] = per_vertex;
             traced
                 .par_iter()
-                .map(|&v| match sparse::anchors(v as usize, &self.positions, &self.normals, &self.vertex_neighbours, &self.sampled, max_edge) {
-                    Some(anchors) => {
-                        let bits: Vec<&[[u64; 2]]> = anchors.iter().map(|&u| per_vertex[u as usize].cell_bits.as_slice()).collect();
-                        sparse::agreed_cells(&bits)
+                .map(|&v| {
+                    match sparse::anchors(
+                        v as usize,
+                        &self.positions,
+                        &self.normals,
+                        &self.vertex_neighbours,
+                        &self.sampled,
+                        max_edge,
+                    ) {
+                        Some(anchors) => {
+                            let bits: Vec<&[[u64; 2]]> = anchors
+                                .iter()
+                                .map(|&u| per_vertex[u as usize].cell_bits.as_slice())
+                                .collect();
+                            sparse::agreed_cells(&bits)
+                        }
+                        None => Vec::new(),
                     }
-                    None => Vec::new(),
                 })
                 .collect()
         };
-        let cuts = self.bake_points(&self.points_of(&traced), &agreed, false, &|k| progress(done + k));
+        let cuts = self.bake_points(&self.points_of(&traced), &agreed, false, &|k| {
+            progress(done + k)
+        });
         store(&traced, cuts, per_vertex, baked);
     }
 
@@ -553,7 +738,12 @@ impl<'a> Baker<'a> {
     pub fn bake_all(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
         let start = std::time::Instant::now();
         let per_vertex = self.bake_base(order, progress);
-        self.finish(per_vertex, Refinement::default(), self.decisions.clone(), start)
+        self.finish(
+            per_vertex,
+            Refinement::default(),
+            self.decisions.clone(),
+            start,
+        )
     }
 
     /// Bakes every vertex, then refines the mesh where visibility changes between vertices
@@ -574,21 +764,29 @@ impl<'a> Baker<'a> {
             decisions.refine_reason = if r.rounds == 0 {
                 "refinement off (0 rounds)".into()
             } else {
-                "no visibility is traced, so it is the same at every vertex: nothing to refine".into()
+                "no visibility is traced, so it is the same at every vertex: nothing to refine"
+                    .into()
             };
             decisions.refined_vertices = base_count;
             return self.finish(base, Refinement::default(), decisions, start);
         }
         let mut mesh = self.scene.mesh.clone();
         let mut per_vertex = base;
-        // Each new vertex as a blend of at most three imported vertices (the corners of the imported
-        // triangle it lies in), so that its rays start on the smooth surface the imported normals
-        // describe, as the imported vertices' do, not on the flat facet below it (which would see
-        // the neighbouring facets at grazing angles: the shadow-terminator problem).
+        // Each new vertex as a blend of at most three imported vertices (the corners of the
+        // imported triangle it lies in), so that its rays start on the smooth surface the imported
+        // normals describe, as the imported vertices' do, not on the flat facet below it (which
+        // would see the neighbouring facets at grazing angles: the shadow-terminator problem).
         let mut blends: Vec<Vec<(u32, f64)>> = Vec::new();
         let base_count_u32 = base_count as u32;
         let blend_of = |blends: &Vec<Vec<(u32, f64)>>, v: u32| -> Vec<(u32, f64)> {
-            if v < base_count_u32 { vec![(v, 1.0)] } else { blends.get((v - base_count_u32) as usize).cloned().unwrap_or_default() }
+            if v < base_count_u32 {
+                vec![(v, 1.0)]
+            } else {
+                blends
+                    .get((v - base_count_u32) as usize)
+                    .cloned()
+                    .unwrap_or_default()
+            }
         };
         let mut parents_all: Vec<[u32; 2]> = Vec::new();
         let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
@@ -605,8 +803,17 @@ impl<'a> Baker<'a> {
                 .filter(|&(_, b)| b >= since)
                 .filter(|&(a, b)| {
                     let (ca, cb) = (&per_vertex[a as usize], &per_vertex[b as usize]);
-                    let n = (mesh.normals[a as usize] + mesh.normals[b as usize]).as_dvec3().try_normalize().unwrap_or(DVec3::Y);
-                    refine::visibility_difference(&self.tree, &self.ring_prefix, &ca.entries, &cb.entries, n) > r.threshold
+                    let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
+                        .as_dvec3()
+                        .try_normalize()
+                        .unwrap_or(DVec3::Y);
+                    refine::visibility_difference(
+                        &self.tree,
+                        &self.ring_prefix,
+                        &ca.entries,
+                        &cb.entries,
+                        n,
+                    ) > r.threshold
                 })
                 .collect();
             if marked.is_empty() {
@@ -631,8 +838,18 @@ impl<'a> Baker<'a> {
                     let flat = mesh.positions[v].as_dvec3();
                     let blend = blend_of(&blends, v as u32);
                     // An edge lies in one imported triangle, so a blend has at most three corners.
-                    let p = if blend.len() <= 3 { crate::scene::smooth_surface_point(&self.scene.mesh, &blend, flat) } else { flat };
-                    Some((p, mesh.normals[v].as_dvec3().try_normalize().unwrap_or(DVec3::Y)))
+                    let p = if blend.len() <= 3 {
+                        crate::scene::smooth_surface_point(&self.scene.mesh, &blend, flat)
+                    } else {
+                        flat
+                    };
+                    Some((
+                        p,
+                        mesh.normals[v]
+                            .as_dvec3()
+                            .try_normalize()
+                            .unwrap_or(DVec3::Y),
+                    ))
                 })
                 .collect();
             per_vertex.extend(self.bake_points(&points, &[], false, &|_| {}));
@@ -654,23 +871,47 @@ impl<'a> Baker<'a> {
                 mesh.positions.len()
             )
         };
-        let refinement = if parents_all.is_empty() { Refinement::default() } else { Refinement { parents: parents_all, triangles: mesh.triangles } };
+        let refinement = if parents_all.is_empty() {
+            Refinement::default()
+        } else {
+            Refinement {
+                parents: parents_all,
+                triangles: mesh.triangles,
+            }
+        };
         self.finish(per_vertex, refinement, decisions, start)
     }
 
-    fn finish(&self, per_vertex: Vec<VertexCut>, refinement: Refinement, mut decisions: Decisions, start: std::time::Instant) -> Bake {
+    fn finish(
+        &self,
+        per_vertex: Vec<VertexCut>,
+        refinement: Refinement,
+        mut decisions: Decisions,
+        start: std::time::Instant,
+    ) -> Bake {
         let n = per_vertex.len();
         let interpolated = per_vertex.iter().filter(|c| c.interpolated).count();
         decisions.interpolated_vertices = interpolated;
         decisions.sampling_reason = self.sampling_reason(interpolated);
         let cuts = Cuts::from_vertex_cuts(&per_vertex);
         let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
-        let capped_vertices = per_vertex.iter().filter(|c| c.epsilon_used > self.settings.cut.epsilon).count();
-        let max_cut_size = per_vertex.iter().map(|c| c.entries.len()).max().unwrap_or(0);
+        let capped_vertices = per_vertex
+            .iter()
+            .filter(|c| c.epsilon_used > self.settings.cut.epsilon)
+            .count();
+        let max_cut_size = per_vertex
+            .iter()
+            .map(|c| c.entries.len())
+            .max()
+            .unwrap_or(0);
         let bytes = cuts.bytes() + refinement.parents.len() * 8 + refinement.triangles.len() * 12;
         let stats = BakeStats {
             vertices: n,
-            triangles: if refinement.is_empty() { self.scene.mesh.triangles.len() } else { refinement.triangles.len() },
+            triangles: if refinement.is_empty() {
+                self.scene.mesh.triangles.len()
+            } else {
+                refinement.triangles.len()
+            },
             rays_traced,
             mean_cut_size: cuts.mean_cut_size(),
             max_cut_size,
@@ -680,12 +921,23 @@ impl<'a> Baker<'a> {
             bytes,
             bytes_per_vertex: bytes as f64 / n.max(1) as f64,
         };
-        Bake { settings: self.settings, decisions, cuts, stats, refinement }
+        Bake {
+            settings: self.settings,
+            decisions,
+            cuts,
+            stats,
+            refinement,
+        }
     }
 }
 
 /// One call: decisions, BVH, every vertex, the refinement ([`Baker::bake_refined`]).
-pub fn bake(scene: &Scene, env: &EnvMap, settings: BakeSettings, progress: &(dyn Fn(usize) + Sync)) -> Result<Bake, BakeError> {
+pub fn bake(
+    scene: &Scene,
+    env: &EnvMap,
+    settings: BakeSettings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Bake, BakeError> {
     let baker = Baker::new(scene, env, settings)?;
     Ok(baker.bake_refined(None, progress))
 }

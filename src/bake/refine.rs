@@ -1,22 +1,25 @@
 //! Adaptive refinement of the baked mesh (decision (e)): visibility is sampled at vertices and
-//! interpolated across triangles, so a shadow edge that falls between two vertices is smeared over the
-//! triangles between them. Where the visibility of an edge's two ends differs, the edge is split at its
-//! midpoint (conformingly, [`split_edges`]) and the new vertex is traced; up to `rounds` times.
+//! interpolated across triangles, so a shadow edge that falls between two vertices is smeared over
+//! the triangles between them. Where the visibility of an edge's two ends differs, the edge is
+//! split at its midpoint (conformingly, [`split_edges`]) and the new vertex is traced; up to
+//! `rounds` times.
 //!
-//! The criterion is light-aware but rotation-invariant (the user turns the light about +Y): per leaf
-//! direction ℓ a weight r_ℓ = the brightest luminance the environment has at ℓ's elevation (over all
-//! azimuths, i.e. over every rotation), and per edge (a, b) with mean normal n̄
+//! The criterion is light-aware but rotation-invariant (the user turns the light about +Y): per
+//! leaf direction ℓ a weight r_ℓ = the brightest luminance the environment has at ℓ's elevation
+//! (over all azimuths, i.e. over every rotation), and per edge (a, b) with mean normal n̄
 //!   D(a, b) = Σ_ℓ |V_a(ℓ) − V_b(ℓ)| r_ℓ Ω_ℓ max(d_ℓ·n̄, 0) / Σ_ℓ r_ℓ Ω_ℓ max(d_ℓ·n̄, 0),
-//! the fraction of the (rotation-worst) irradiance whose visibility differs between the ends, with V(ℓ)
-//! read from each end's cut (V_k of the cut node holding ℓ, 0 below the horizon). Both cuts are leaf
-//! ranges in leaf order, so D costs one merge of the two cuts (prefix sums of r Ω d over leaf order).
-//! An edge is split while D > `threshold` and it is longer than `min_edge` × the bounding-box diagonal
-//! (which keeps dense meshes, whose vertices already resolve their shadows, from growing).
+//! the fraction of the (rotation-worst) irradiance whose visibility differs between the ends, with
+//! V(ℓ) read from each end's cut (V_k of the cut node holding ℓ, 0 below the horizon). Both cuts
+//! are leaf ranges in leaf order, so D costs one merge of the two cuts (prefix sums of r Ω d over
+//! leaf order). An edge is split while D > `threshold` and it is longer than `min_edge` × the
+//! bounding-box diagonal (which keeps dense meshes, whose vertices already resolve their shadows,
+//! from growing).
 //!
 //! Inputs: the base mesh, its vertices' cuts, the light tree, the per-leaf weights. Outputs: a
 //! [`Refinement`] (new vertices as parent edges, and the refined triangle list), which
-//! [`Refinement::apply`] replays on the base mesh. Invariants: the surface does not change (midpoints lie
-//! on the flat triangles); the first V vertices are the base mesh's, in order; deterministic; no IO.
+//! [`Refinement::apply`] replays on the base mesh. Invariants: the surface does not change
+//! (midpoints lie on the flat triangles); the first V vertices are the base mesh's, in order;
+//! deterministic; no IO.
 
 use crate::scene::{Mesh, split_edges};
 use crate::sphere::LightTree;
@@ -28,13 +31,14 @@ use serde::{Deserialize, Serialize};
 pub struct RefineSettings {
     /// Rounds of splitting (0: off). Each round at most halves the longest edges.
     pub rounds: u32,
-    /// Split an edge while its ends' visibility differs by more than this fraction D of the irradiance.
+    /// Split an edge while its ends' visibility differs by more than this fraction D of the
+    /// irradiance.
     pub threshold: f64,
     /// Never split an edge shorter than this fraction of the bounding-box diagonal.
     pub min_edge: f64,
     /// Vertex sampling (decision (f), [`super::sparse`]): a vertex whose edges are all shorter than
-    /// `min_edge` and whose traced neighbours agree within `threshold` is interpolated from them instead
-    /// of traced.
+    /// `min_edge` and whose traced neighbours agree within `threshold` is interpolated from them
+    /// instead of traced.
     #[serde(default = "interpolate_default")]
     pub interpolate: bool,
 }
@@ -45,7 +49,12 @@ fn interpolate_default() -> bool {
 
 impl Default for RefineSettings {
     fn default() -> Self {
-        Self { rounds: 3, threshold: 0.02, min_edge: 1.0 / 128.0, interpolate: true }
+        Self {
+            rounds: 3,
+            threshold: 0.02,
+            min_edge: 1.0 / 128.0,
+            interpolate: true,
+        }
     }
 }
 
@@ -64,7 +73,11 @@ pub enum RefineError {
     #[error("refinement vertex {index} has parent {parent}, which does not exist yet")]
     Parent { index: usize, parent: u32 },
     #[error("refined triangle {index} uses vertex {vertex} of {count}")]
-    Triangle { index: usize, vertex: u32, count: usize },
+    Triangle {
+        index: usize,
+        vertex: u32,
+        count: usize,
+    },
 }
 
 impl Refinement {
@@ -83,14 +96,21 @@ impl Refinement {
         for (k, &[a, b]) in self.parents.iter().enumerate() {
             let count = mesh.positions.len() as u32;
             if let Some(&parent) = [a, b].iter().find(|&&p| p >= count) {
-                return Err(RefineError::Parent { index: base.positions.len() + k, parent });
+                return Err(RefineError::Parent {
+                    index: base.positions.len() + k,
+                    parent,
+                });
             }
             crate::scene::push_midpoint(&mut mesh, a, b);
         }
         let count = mesh.positions.len();
         for (index, t) in self.triangles.iter().enumerate() {
             if let Some(&vertex) = t.iter().find(|&&v| v as usize >= count) {
-                return Err(RefineError::Triangle { index, vertex, count });
+                return Err(RefineError::Triangle {
+                    index,
+                    vertex,
+                    count,
+                });
             }
         }
         mesh.triangles = self.triangles.clone();
@@ -98,16 +118,20 @@ impl Refinement {
     }
 }
 
-/// Per leaf (tree order), r_ℓ Ω_ℓ d_ℓ as prefix sums (length L + 1): r_ℓ is the largest luminance of
-/// `leaf_radiance` (mean radiance per leaf, tree order, at any rotation) among leaves within about a
-/// leaf's size of ℓ's elevation — the brightest light that some rotation about +Y brings to ℓ.
+/// Per leaf (tree order), r_ℓ Ω_ℓ d_ℓ as prefix sums (length L + 1): r_ℓ is the largest luminance
+/// of `leaf_radiance` (mean radiance per leaf, tree order, at any rotation) among leaves within
+/// about a leaf's size of ℓ's elevation — the brightest light that some rotation about +Y brings to
+/// ℓ.
 pub fn ring_weight_prefix(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Vec<DVec3> {
     let dirs = tree.leaf_directions();
     let n = dirs.len().max(1);
     // Bins of elevation about as wide as a leaf: 6n² leaves of ~(π/2n)² sr.
     let leaf_angle = (4.0 * std::f64::consts::PI / n as f64).sqrt();
     let bins = ((std::f64::consts::PI / leaf_angle).ceil() as usize).max(1);
-    let bin_of = |d: &DVec3| (((d.y.clamp(-1.0, 1.0).asin() / std::f64::consts::PI + 0.5) * bins as f64) as usize).min(bins - 1);
+    let bin_of = |d: &DVec3| {
+        (((d.y.clamp(-1.0, 1.0).asin() / std::f64::consts::PI + 0.5) * bins as f64) as usize)
+            .min(bins - 1)
+    };
     let mut bin_max = vec![0.0f64; bins];
     for (d, l) in dirs.iter().zip(leaf_radiance) {
         let y = 0.2126 * l[0] + 0.7152 * l[1] + 0.0722 * l[2];
@@ -119,7 +143,9 @@ pub fn ring_weight_prefix(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Vec<D
     prefix.push(sum);
     for (d, m) in dirs.iter().zip(tree.leaf_moments()) {
         let b = bin_of(d);
-        let r = bin_max[b.saturating_sub(1)..(b + 2).min(bins)].iter().fold(0.0f64, |a, &x| a.max(x));
+        let r = bin_max[b.saturating_sub(1)..(b + 2).min(bins)]
+            .iter()
+            .fold(0.0f64, |a, &x| a.max(x));
         sum += *m * r;
         prefix.push(sum);
     }
@@ -128,10 +154,20 @@ pub fn ring_weight_prefix(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Vec<D
 
 /// D(a, b) of the module docs: the weighted fraction of directions whose visibility differs between
 /// two cuts ((node, V) in pre-order), for the mean normal `n`. 0 when neither end sees any weight.
-pub fn visibility_difference(tree: &LightTree, prefix: &[DVec3], a: &[(u32, f32)], b: &[(u32, f32)], n: DVec3) -> f64 {
+pub fn visibility_difference(
+    tree: &LightTree,
+    prefix: &[DVec3],
+    a: &[(u32, f32)],
+    b: &[(u32, f32)],
+    n: DVec3,
+) -> f64 {
     let nodes = tree.nodes();
     let range = |c: &[(u32, f32)], i: usize| -> Option<(u32, u32, f32)> {
-        c.get(i).and_then(|&(k, v)| nodes.get(k as usize).map(|node| (node.first, node.first + node.count, v)))
+        c.get(i).and_then(|&(k, v)| {
+            nodes
+                .get(k as usize)
+                .map(|node| (node.first, node.first + node.count, v))
+        })
     };
     let weight = |s: u32, e: u32| -> f64 {
         match (prefix.get(s as usize), prefix.get(e as usize)) {
@@ -141,7 +177,8 @@ pub fn visibility_difference(tree: &LightTree, prefix: &[DVec3], a: &[(u32, f32)
     };
     let (mut i, mut j) = (0usize, 0usize);
     let (mut num, mut den) = (0.0f64, 0.0f64);
-    // Sweep the leaf order: at each step, the next boundary of either cut ends the current interval.
+    // Sweep the leaf order: at each step, the next boundary of either cut ends the current
+    // interval.
     let mut x = 0u32;
     loop {
         let (ra, rb) = (range(a, i), range(b, j));
@@ -158,11 +195,22 @@ pub fn visibility_difference(tree: &LightTree, prefix: &[DVec3], a: &[(u32, f32)
             continue;
         }
         // The next interval starts at x, or at the next range start if both are ahead.
-        let start = [ra, rb].iter().flatten().map(|r| r.0.max(x)).min().unwrap_or(x);
+        let start = [ra, rb]
+            .iter()
+            .flatten()
+            .map(|r| r.0.max(x))
+            .min()
+            .unwrap_or(x);
         let va = ra.filter(|r| r.0 <= start).map_or(0.0, |r| r.2);
         let vb = rb.filter(|r| r.0 <= start).map_or(0.0, |r| r.2);
         // It ends at the nearest boundary after `start`.
-        let end = [ra, rb].iter().flatten().flat_map(|r| [r.0, r.1]).filter(|&p| p > start).min().unwrap_or(start);
+        let end = [ra, rb]
+            .iter()
+            .flatten()
+            .flat_map(|r| [r.0, r.1])
+            .filter(|&p| p > start)
+            .min()
+            .unwrap_or(start);
         if end <= start {
             break;
         }
@@ -180,9 +228,14 @@ pub fn long_edges(mesh: &Mesh, min_length: f32) -> Vec<(u32, u32)> {
         .triangles
         .iter()
         .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
-        .filter(|&(a, b)| match (mesh.positions.get(a as usize), mesh.positions.get(b as usize)) {
-            (Some(p), Some(q)) => (*p - *q).length() > min_length,
-            _ => false,
+        .filter(|&(a, b)| {
+            match (
+                mesh.positions.get(a as usize),
+                mesh.positions.get(b as usize),
+            ) {
+                (Some(p), Some(q)) => (*p - *q).length() > min_length,
+                _ => false,
+            }
         })
         .collect();
     edges.sort_unstable();
@@ -218,8 +271,8 @@ mod tests {
         };
         let (va, vb) = (per_leaf(a), per_leaf(b));
         let (mut num, mut den) = (0.0, 0.0);
-        // The prefix uses exact texel moments, so a leaf's weight is r Ω max(moment·n, 0) summed per
-        // interval; per leaf the same holds wherever the leaf lies wholly above the plane.
+        // The prefix uses exact texel moments, so a leaf's weight is r Ω max(moment·n, 0) summed
+        // per interval; per leaf the same holds wherever the leaf lies wholly above the plane.
         for l in 0..tree.leaf_count() {
             if va[l] == 0.0 && vb[l] == 0.0 {
                 continue;
@@ -235,17 +288,23 @@ mod tests {
     fn the_difference_of_two_cuts_matches_a_per_leaf_sum() {
         let tree = tree();
         let leaves = tree.leaf_count();
-        let radiance: Vec<[f64; 3]> = (0..leaves).map(|l| [1.0 + (l % 7) as f64, 1.0, 0.5]).collect();
+        let radiance: Vec<[f64; 3]> = (0..leaves)
+            .map(|l| [1.0 + (l % 7) as f64, 1.0, 0.5])
+            .collect();
         let prefix = ring_weight_prefix(&tree, &radiance);
-        let r: Vec<f64> = (0..leaves).map(|l| (prefix[l + 1] - prefix[l]).length() / tree.leaf_moments()[l].length()).collect();
-        // Two cuts over the upper hemisphere of +Z at different depths: every leaf above is in one node.
+        let r: Vec<f64> = (0..leaves)
+            .map(|l| (prefix[l + 1] - prefix[l]).length() / tree.leaf_moments()[l].length())
+            .collect();
+        // Two cuts over the upper hemisphere of +Z at different depths: every leaf above is in one
+        // node.
         let n = DVec3::Z;
         let cut = |depth_bias: u32, seed: u32| -> Vec<(u32, f32)> {
             let mut out = Vec::new();
             let mut stack = vec![0u32];
             while let Some(k) = stack.pop() {
                 let node = tree.nodes()[k as usize];
-                let above = (node.first..node.first + node.count).any(|l| tree.leaf_directions()[l as usize].dot(n) > 0.0);
+                let above = (node.first..node.first + node.count)
+                    .any(|l| tree.leaf_directions()[l as usize].dot(n) > 0.0);
                 if !above {
                     continue;
                 }
@@ -262,11 +321,16 @@ mod tests {
         let got = visibility_difference(&tree, &prefix, &a, &b, n);
         let want = brute(&tree, &r, &a, &b, n);
         assert!(got > 0.05, "the cuts differ: {got}");
-        // Intervals that straddle the horizon are weighted by their clamped moment, leaves by theirs:
-        // they agree to the weight of the few leaves the plane cuts.
+        // Intervals that straddle the horizon are weighted by their clamped moment, leaves by
+        // theirs: they agree to the weight of the few leaves the plane cuts.
         assert!((got - want).abs() < 0.02, "merge {got} vs per-leaf {want}");
         assert_eq!(visibility_difference(&tree, &prefix, &a, &a, n), 0.0);
-        assert!((visibility_difference(&tree, &prefix, &a, &b, n) - visibility_difference(&tree, &prefix, &b, &a, n)).abs() < 1e-12);
+        assert!(
+            (visibility_difference(&tree, &prefix, &a, &b, n)
+                - visibility_difference(&tree, &prefix, &b, &a, n))
+            .abs()
+                < 1e-12
+        );
         // A fully visible against a fully hidden hemisphere differs everywhere.
         let all: Vec<(u32, f32)> = a.iter().map(|&(k, _)| (k, 1.0)).collect();
         let none: Vec<(u32, f32)> = a.iter().map(|&(k, _)| (k, 0.0)).collect();
@@ -279,13 +343,19 @@ mod tests {
         let dirs = tree.leaf_directions();
         // One bright leaf at elevation ~30°: every leaf near that elevation gets its radiance.
         let bright = dirs.iter().position(|d| (d.y - 0.5).abs() < 0.05).unwrap();
-        let radiance: Vec<[f64; 3]> = (0..dirs.len()).map(|l| if l == bright { [100.0; 3] } else { [1.0; 3] }).collect();
+        let radiance: Vec<[f64; 3]> = (0..dirs.len())
+            .map(|l| if l == bright { [100.0; 3] } else { [1.0; 3] })
+            .collect();
         let prefix = ring_weight_prefix(&tree, &radiance);
         let r = |l: usize| (prefix[l + 1] - prefix[l]).length() / tree.leaf_moments()[l].length();
         for l in 0..dirs.len() {
             let dy = (dirs[l].y.asin() - 0.5f64.asin()).abs();
             if dy < 0.02 {
-                assert!((r(l) - 100.0).abs() < 1e-9, "leaf {l} at the light's elevation: {}", r(l));
+                assert!(
+                    (r(l) - 100.0).abs() < 1e-9,
+                    "leaf {l} at the light's elevation: {}",
+                    r(l)
+                );
             }
             if dy > 0.6 {
                 assert!((r(l) - 1.0).abs() < 1e-9, "leaf {l} far from it: {}", r(l));
@@ -301,11 +371,23 @@ mod tests {
         let marked = vec![edges[0]];
         let parents = split_marked(&mut refined, &marked);
         assert_eq!(parents.len(), 1);
-        let r = Refinement { parents, triangles: refined.triangles.clone() };
+        let r = Refinement {
+            parents,
+            triangles: refined.triangles.clone(),
+        };
         assert_eq!(r.apply(&mesh).unwrap(), refined);
-        let bad = Refinement { parents: vec![[0, 99]], triangles: vec![] };
+        let bad = Refinement {
+            parents: vec![[0, 99]],
+            triangles: vec![],
+        };
         assert!(matches!(bad.apply(&mesh), Err(RefineError::Parent { .. })));
-        let bad = Refinement { parents: vec![[0, 1]], triangles: vec![[0, 1, 5]] };
-        assert!(matches!(bad.apply(&mesh), Err(RefineError::Triangle { .. })));
+        let bad = Refinement {
+            parents: vec![[0, 1]],
+            triangles: vec![[0, 1, 5]],
+        };
+        assert!(matches!(
+            bad.apply(&mesh),
+            Err(RefineError::Triangle { .. })
+        ));
     }
 }

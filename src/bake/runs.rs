@@ -2,12 +2,12 @@
 //! loop the transfer (per pixel) and the PRT renderer (per shading point) share.
 //!
 //! Inputs: per vertex its cut as leaf ranges ([`Span`], from [`Cuts::spans`]) and a weight (the
-//! barycentric), the partition's leaf ranges. Output: a callback for each maximal run [a, z) of leaves
-//! on which every cut node and the partition node are constant, with V = Σ wᵢ Vᵢ and the partition
-//! node's index; runs with V ≤ 0 (occluded, or below every horizon) are skipped.
+//! barycentric), the partition's leaf ranges. Output: a callback for each maximal run [a, z) of
+//! leaves on which every cut node and the partition node are constant, with V = Σ wᵢ Vᵢ and the
+//! partition node's index; runs with V ≤ 0 (occluded, or below every horizon) are skipped.
 //!
-//! Invariants: spans are disjoint and in leaf order (cut nodes are stored in pre-order); each call is
-//! O(runs); no IO.
+//! Invariants: spans are disjoint and in leaf order (cut nodes are stored in pre-order); each call
+//! is O(runs); no IO.
 
 use super::Cuts;
 use crate::sphere::LightTree;
@@ -25,19 +25,30 @@ impl Cuts {
     pub fn spans<'a>(&'a self, v: usize, tree: &'a LightTree) -> impl Iterator<Item = Span> + 'a {
         self.cut(v).map(move |(k, vis)| {
             let node = tree.nodes()[k as usize];
-            Span { first: node.first, end: node.first + node.count, v: vis }
+            Span {
+                first: node.first,
+                end: node.first + node.count,
+                v: vis,
+            }
         })
     }
 }
 
-/// Calls `f(a, z, vis, partition_index)` for every run of leaves [a, z) with vis > 0, in leaf order.
-/// `lists` and `weights` pair up (at most three are used); `partition` covers [0, leaves) in order.
+/// Calls `f(a, z, vis, partition_index)` for every run of leaves [a, z) with vis > 0, in leaf
+/// order. `lists` and `weights` pair up (at most three are used); `partition` covers [0, leaves) in
+/// order.
 ///
 /// Two levels: the cuts are merged into segments on which every cut node is constant (cut nodes are
 /// much wider than partition nodes), and each segment with vis > 0 is cut at the partition's
 /// boundaries in a loop of its own; gaps (vis = 0) are skipped by a binary search of the partition.
 #[inline]
-pub fn for_each_run(lists: &[&[Span]], weights: &[f64], partition: &[(u32, u32)], leaves: u32, mut f: impl FnMut(usize, usize, f64, usize)) {
+pub fn for_each_run(
+    lists: &[&[Span]],
+    weights: &[f64],
+    partition: &[(u32, u32)],
+    leaves: u32,
+    mut f: impl FnMut(usize, usize, f64, usize),
+) {
     let n = lists.len().min(weights.len()).min(3);
     let mut idx = [0usize; 3];
     let (mut pos, mut si) = (0u32, 0usize);
@@ -89,12 +100,38 @@ mod tests {
 
     #[test]
     fn runs_split_at_every_boundary_and_blend_visibility() {
-        let a = [Span { first: 0, end: 4, v: 1.0 }, Span { first: 6, end: 8, v: 0.5 }];
-        let b = [Span { first: 2, end: 8, v: 0.25 }];
+        let a = [
+            Span {
+                first: 0,
+                end: 4,
+                v: 1.0,
+            },
+            Span {
+                first: 6,
+                end: 8,
+                v: 0.5,
+            },
+        ];
+        let b = [Span {
+            first: 2,
+            end: 8,
+            v: 0.25,
+        }];
         let partition = [(0, 3), (3, 8)];
         let mut runs = Vec::new();
-        for_each_run(&[&a, &b], &[0.5, 0.5], &partition, 8, |a, z, v, si| runs.push((a, z, v, si)));
+        for_each_run(&[&a, &b], &[0.5, 0.5], &partition, 8, |a, z, v, si| {
+            runs.push((a, z, v, si))
+        });
         // [0,2): a only; [2,3) and [3,4): both, split by the partition; [4,6): b only; [6,8): both.
-        assert_eq!(runs, vec![(0, 2, 0.5, 0), (2, 3, 0.625, 0), (3, 4, 0.625, 1), (4, 6, 0.125, 1), (6, 8, 0.375, 1)]);
+        assert_eq!(
+            runs,
+            vec![
+                (0, 2, 0.5, 0),
+                (2, 3, 0.625, 0),
+                (3, 4, 0.625, 1),
+                (4, 6, 0.125, 1),
+                (6, 8, 0.375, 1)
+            ]
+        );
     }
 }

@@ -1,49 +1,51 @@
-//! Vertex sampling (decision (f)): on a dense mesh, neighbouring vertices see nearly the same sky, so not
-//! every vertex is traced. The dual of the refinement ([`super::refine`], which splits long edges whose
-//! ends' visibility differs): a vertex whose edges are all short and whose traced neighbours agree is
-//! interpolated from them.
+//! Vertex sampling (decision (f)): on a dense mesh, neighbouring vertices see nearly the same sky,
+//! so not every vertex is traced. The dual of the refinement ([`super::refine`], which splits long
+//! edges whose ends' visibility differs): a vertex whose edges are all short and whose traced
+//! neighbours agree is interpolated from them.
 //!
 //! The rule, deterministic and independent of the order vertices are baked in:
-//! 1. *Sampled* vertices, a maximal independent set of the edge graph chosen greedily in vertex order
-//!    ([`sampled_vertices`]), are always traced. Every other vertex has at least one sampled neighbour.
-//! 2. Any other vertex v is *interpolated* when (a) every edge at v is at most `min_edge` × the bounding
-//!    box's diagonal (the scale below which the refinement already deems a mesh dense enough), (b) it
-//!    has at least two sampled neighbours, (c) their normals are within [`MAX_NORMAL_DEG`] of v's,
-//!    (d) every pair of them agrees: D(a, b) ≤ `threshold` ([`super::refine::visibility_difference`],
-//!    the fraction of the rotation-worst irradiance whose visibility differs, with v's normal), and
-//!    (e) the part of v's hemisphere below all their horizons (where they know nothing) carries at most
-//!    `threshold` of that weighted irradiance. Otherwise it is traced.
-//! 3. An interpolated vertex's cut is the common refinement of its sampled neighbours' cuts (cut nodes
-//!    are tree nodes, so at every leaf the deepest of them is a tree node too), with V the
+//! 1. *Sampled* vertices, a maximal independent set of the edge graph chosen greedily in vertex
+//!    order ([`sampled_vertices`]), are always traced. Every other vertex has at least one sampled
+//!    neighbour.
+//! 2. Any other vertex v is *interpolated* when (a) every edge at v is at most `min_edge` × the
+//!    bounding box's diagonal (the scale below which the refinement already deems a mesh dense
+//!    enough), (b) it has at least two sampled neighbours, (c) their normals are within
+//!    [`MAX_NORMAL_DEG`] of v's, (d) every pair of them agrees: D(a, b) ≤ `threshold`
+//!    ([`super::refine::visibility_difference`], the fraction of the rotation-worst irradiance
+//!    whose visibility differs, with v's normal), and (e) the part of v's hemisphere below all
+//!    their horizons (where they know nothing) carries at most `threshold` of that weighted
+//!    irradiance. Otherwise it is traced.
+//! 3. An interpolated vertex's cut is the common refinement of its sampled neighbours' cuts (cut
+//!    nodes are tree nodes, so at every leaf the deepest of them is a tree node too), with V the
 //!    inverse-distance-weighted mean of theirs (0 where a neighbour's cut has no node: below its
-//!    horizon), less the nodes wholly below v's horizon ([`blend_cuts`]). Across a triangle the renderer
-//!    blends the corners' V with the same kind of weights, so an interpolated vertex stands where a
-//!    coarser mesh's interpolation would: the accuracy model of the refinement, which splits an edge
-//!    only where its ends differ by more than the threshold.
+//!    horizon), less the nodes wholly below v's horizon ([`blend_cuts`]). Across a triangle the
+//!    renderer blends the corners' V with the same kind of weights, so an interpolated vertex
+//!    stands where a coarser mesh's interpolation would: the accuracy model of the refinement,
+//!    which splits an edge only where its ends differ by more than the threshold.
 //! 4. A vertex that must be traced after all, where (a)–(c) hold, takes from its sampled neighbours
-//!    every visibility cell they all know exactly and agree on ([`agreed_cells`]: each recorded, while
-//!    traced, which cells' rays it cast or settled by a free cone or a pure cut node, and with what
-//!    result) and casts rays for the rest. A cell's visibility then differs from its own ray's only
-//!    where an occluder's edge passes between the vertex and every one of its neighbours' rays along
-//!    the cell, all pointing the same way from points within `min_edge` of it. Measured on
-//!    dragon_100k under courtyard (`tests/bake_visibility.rs`, 400 vertices against a ray per
-//!    direction): those vertices' error 2.95 % against 2.83 % traced alone, 44 % fewer rays over the
-//!    sample; the whole bake 11.95 M → 8.50 M rays.
+//!    every visibility cell they all know exactly and agree on ([`agreed_cells`]: each recorded,
+//!    while traced, which cells' rays it cast or settled by a free cone or a pure cut node, and
+//!    with what result) and casts rays for the rest. A cell's visibility then differs from its own
+//!    ray's only where an occluder's edge passes between the vertex and every one of its
+//!    neighbours' rays along the cell, all pointing the same way from points within `min_edge` of
+//!    it. Measured on dragon_100k under courtyard (`tests/bake_visibility.rs`, 400 vertices against
+//!    a ray per direction): those vertices' error 2.95 % against 2.83 % traced alone, 44 % fewer
+//!    rays over the sample; the whole bake 11.95 M → 8.50 M rays.
 //!
 //! Inputs: the mesh's triangles and positions, the traced cuts, the light tree, the refinement's
 //! per-leaf weights. Outputs: which vertices are sampled, which are interpolated, and their cuts.
-//! Invariants: no ray tracing; an interpolated cut is a valid cut (disjoint tree nodes in pre-order,
-//! V in [0, 1]); no IO.
+//! Invariants: no ray tracing; an interpolated cut is a valid cut (disjoint tree nodes in
+//! pre-order, V in [0, 1]); no IO.
 
-use super::refine::visibility_difference;
 use super::VertexCut;
+use super::refine::visibility_difference;
 use crate::sphere::LightTree;
 use glam::DVec3;
 
-/// Largest angle between an interpolated vertex's normal and each of its sampled neighbours' (degrees):
-/// beyond it the surface bends too much between them for their horizons to stand for its own. (Within
-/// it, a vertex is still traced where the part of its hemisphere below every neighbour's horizon
-/// carries more than the threshold of its weighted irradiance, [`blend_cuts`].)
+/// Largest angle between an interpolated vertex's normal and each of its sampled neighbours'
+/// (degrees): beyond it the surface bends too much between them for their horizons to stand for its
+/// own. (Within it, a vertex is still traced where the part of its hemisphere below every
+/// neighbour's horizon carries more than the threshold of its weighted irradiance, [`blend_cuts`].)
 pub const MAX_NORMAL_DEG: f64 = 30.0;
 
 /// Neighbours of every vertex through the triangles' edges, sorted, each once.
@@ -66,12 +68,14 @@ pub fn vertex_neighbours(vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<Vec
     out
 }
 
-/// The sampled vertices: a maximal independent set of the edge graph, greedy in vertex order (a vertex is
-/// sampled unless a lower-numbered neighbour is). Isolated vertices are sampled.
+/// The sampled vertices: a maximal independent set of the edge graph, greedy in vertex order (a
+/// vertex is sampled unless a lower-numbered neighbour is). Isolated vertices are sampled.
 pub fn sampled_vertices(neighbours: &[Vec<u32>]) -> Vec<bool> {
     let mut sampled = vec![false; neighbours.len()];
     for v in 0..neighbours.len() {
-        sampled[v] = !neighbours[v].iter().any(|&u| (u as usize) < v && sampled[u as usize]);
+        sampled[v] = !neighbours[v]
+            .iter()
+            .any(|&u| (u as usize) < v && sampled[u as usize]);
     }
     sampled
 }
@@ -79,15 +83,34 @@ pub fn sampled_vertices(neighbours: &[Vec<u32>]) -> Vec<bool> {
 /// The sampled neighbours of a vertex that is not sampled, when rule 2's conditions on the geometry
 /// hold ((a) short edges, (b) at least two of them, (c) normals within [`MAX_NORMAL_DEG`]); `None`
 /// otherwise.
-pub fn anchors(v: usize, positions: &[DVec3], normals: &[DVec3], neighbours: &[Vec<u32>], sampled: &[bool], max_edge: f64) -> Option<Vec<u32>> {
+pub fn anchors(
+    v: usize,
+    positions: &[DVec3],
+    normals: &[DVec3],
+    neighbours: &[Vec<u32>],
+    sampled: &[bool],
+    max_edge: f64,
+) -> Option<Vec<u32>> {
     let (p, n) = (*positions.get(v)?, *normals.get(v)?);
     let around = neighbours.get(v)?;
-    if *sampled.get(v)? || around.iter().any(|&u| positions[u as usize].distance(p) > max_edge) {
+    if *sampled.get(v)?
+        || around
+            .iter()
+            .any(|&u| positions[u as usize].distance(p) > max_edge)
+    {
         return None;
     }
     let cos_max = MAX_NORMAL_DEG.to_radians().cos();
-    let anchors: Vec<u32> = around.iter().copied().filter(|&u| sampled[u as usize]).collect();
-    if anchors.len() < 2 || anchors.iter().any(|&u| normals[u as usize].dot(n) < cos_max) {
+    let anchors: Vec<u32> = around
+        .iter()
+        .copied()
+        .filter(|&u| sampled[u as usize])
+        .collect();
+    if anchors.len() < 2
+        || anchors
+            .iter()
+            .any(|&u| normals[u as usize].dot(n) < cos_max)
+    {
         return None;
     }
     Some(anchors)
@@ -98,7 +121,9 @@ pub fn anchors(v: usize, positions: &[DVec3], normals: &[DVec3], neighbours: &[V
 /// their visibility instead of casting its own ray ([`super::cuts::Prior`]). Empty when any of them
 /// recorded nothing (or for none).
 pub fn agreed_cells(bits: &[&[[u64; 2]]]) -> Vec<[u64; 2]> {
-    let Some(first) = bits.first() else { return Vec::new() };
+    let Some(first) = bits.first() else {
+        return Vec::new();
+    };
     if bits.iter().any(|b| b.len() != first.len() || b.is_empty()) {
         return Vec::new();
     }
@@ -118,8 +143,9 @@ pub fn agreed_cells(bits: &[&[[u64; 2]]]) -> Vec<[u64; 2]> {
         .collect()
 }
 
-/// Whether vertex `v` may be interpolated (rule 2 of the module docs) and, if so, its sampled neighbours
-/// with their weights (inverse distance, summing to 1). `cut_of(u)` gives sampled vertex u's traced cut.
+/// Whether vertex `v` may be interpolated (rule 2 of the module docs) and, if so, its sampled
+/// neighbours with their weights (inverse distance, summing to 1). `cut_of(u)` gives sampled vertex
+/// u's traced cut.
 #[allow(clippy::too_many_arguments)]
 pub fn interpolation_weights<'c>(
     v: usize,
@@ -137,19 +163,31 @@ pub fn interpolation_weights<'c>(
     let (p, n) = (positions[v], normals[v]);
     for (i, &a) in anchors.iter().enumerate() {
         for &b in &anchors[i + 1..] {
-            if visibility_difference(tree, prefix, cut_of(a as usize), cut_of(b as usize), n) > threshold {
+            if visibility_difference(tree, prefix, cut_of(a as usize), cut_of(b as usize), n)
+                > threshold
+            {
                 return None;
             }
         }
     }
-    let inverse: Vec<f64> = anchors.iter().map(|&u| 1.0 / positions[u as usize].distance(p).max(1e-30)).collect();
+    let inverse: Vec<f64> = anchors
+        .iter()
+        .map(|&u| 1.0 / positions[u as usize].distance(p).max(1e-30))
+        .collect();
     let total: f64 = inverse.iter().sum();
-    Some(anchors.into_iter().zip(inverse).map(|(u, w)| (u, w / total)).collect())
+    Some(
+        anchors
+            .into_iter()
+            .zip(inverse)
+            .map(|(u, w)| (u, w / total))
+            .collect(),
+    )
 }
 
-/// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r depend on
-/// the elevation only (the rotation-worst light, [`super::refine::ring_weight_prefix`]), so the total
-/// depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values, interpolated linearly.
+/// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r
+/// depend on the elevation only (the rotation-worst light, [`super::refine::ring_weight_prefix`]),
+/// so the total depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values,
+/// interpolated linearly.
 #[derive(Debug, Clone, Default)]
 pub struct HemisphereTotals {
     table: Vec<f64>,
@@ -183,8 +221,16 @@ impl HemisphereTotals {
 }
 
 /// Σ max(r Ω d·n, 0) over the leaves of node `k` within [lo, hi) (prefix sums of r Ω d in `prefix`;
-/// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts through.
-fn hemisphere_weight(tree: &LightTree, prefix: &[DVec3], k: u32, lo: u32, hi: u32, normal: DVec3) -> f64 {
+/// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts
+/// through.
+fn hemisphere_weight(
+    tree: &LightTree,
+    prefix: &[DVec3],
+    k: u32,
+    lo: u32,
+    hi: u32,
+    normal: DVec3,
+) -> f64 {
     if prefix.len() <= tree.leaf_count() {
         return 0.0;
     }
@@ -198,14 +244,25 @@ fn hemisphere_weight(tree: &LightTree, prefix: &[DVec3], k: u32, lo: u32, hi: u3
         return 0.0;
     }
     if wholly_above || node.is_leaf() {
-        return (prefix[end as usize] - prefix[first as usize]).dot(normal).max(0.0);
+        return (prefix[end as usize] - prefix[first as usize])
+            .dot(normal)
+            .max(0.0);
     }
-    hemisphere_weight(tree, prefix, node.left, lo, hi, normal) + hemisphere_weight(tree, prefix, node.right, lo, hi, normal)
+    hemisphere_weight(tree, prefix, node.left, lo, hi, normal)
+        + hemisphere_weight(tree, prefix, node.right, lo, hi, normal)
 }
 
-/// Pushes the largest tree nodes under `k` that lie within the leaf range [lo, hi), with value `v`, in
-/// leaf order, less those wholly below the horizon of `normal`.
-fn emit_range(tree: &LightTree, k: u32, lo: u32, hi: u32, v: f32, normal: DVec3, out: &mut Vec<(u32, f32)>) {
+/// Pushes the largest tree nodes under `k` that lie within the leaf range [lo, hi), with value `v`,
+/// in leaf order, less those wholly below the horizon of `normal`.
+fn emit_range(
+    tree: &LightTree,
+    k: u32,
+    lo: u32,
+    hi: u32,
+    v: f32,
+    normal: DVec3,
+    out: &mut Vec<(u32, f32)>,
+) {
     let node = tree.nodes()[k as usize];
     let (first, end) = (node.first, node.first + node.count);
     if end <= lo || first >= hi {
@@ -224,11 +281,18 @@ fn emit_range(tree: &LightTree, k: u32, lo: u32, hi: u32, v: f32, normal: DVec3,
 
 /// The interpolated cut at a vertex with unit `normal` (rule 3 of the module docs): the common
 /// refinement of `cuts` ((node, V) in pre-order) with V = Σ wᵢ Vᵢ, nodes wholly below the horizon
-/// dropped; and the fraction of the vertex's weighted hemisphere (per-leaf weights r Ω d as prefix sums
-/// in `prefix`, [`super::refine::ring_weight_prefix`]; empty: 0) that no cut covers, where the
+/// dropped; and the fraction of the vertex's weighted hemisphere (per-leaf weights r Ω d as prefix
+/// sums in `prefix`, [`super::refine::ring_weight_prefix`]; empty: 0) that no cut covers, where the
 /// neighbours' horizons hide what the vertex sees: the uncovered weight over `total`, the whole
 /// hemisphere's ([`HemisphereTotals`]).
-pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], normal: DVec3, prefix: &[DVec3], total: f64) -> (VertexCut, f64) {
+pub fn blend_cuts(
+    tree: &LightTree,
+    cuts: &[&[(u32, f32)]],
+    weights: &[f64],
+    normal: DVec3,
+    prefix: &[DVec3],
+    total: f64,
+) -> (VertexCut, f64) {
     let mut uncovered = 0.0f64;
     let nodes = tree.nodes();
     let mut idx = vec![0usize; cuts.len()];
@@ -236,11 +300,14 @@ pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], nor
     let mut pos = 0u32;
     let leaves = tree.leaf_count() as u32;
     while pos < leaves {
-        // The deepest node among the cuts' nodes holding `pos`, and the next start if none holds it.
+        // The deepest node among the cuts' nodes holding `pos`, and the next start if none holds
+        // it.
         let mut best: Option<(u32, u32)> = None;
         let mut next_start = leaves;
         for (c, cut) in cuts.iter().enumerate() {
-            while idx[c] < cut.len() && nodes[cut[idx[c]].0 as usize].first + nodes[cut[idx[c]].0 as usize].count <= pos {
+            while idx[c] < cut.len()
+                && nodes[cut[idx[c]].0 as usize].first + nodes[cut[idx[c]].0 as usize].count <= pos
+            {
                 idx[c] += 1;
             }
             if let Some(&(k, _)) = cut.get(idx[c]) {
@@ -274,7 +341,20 @@ pub fn blend_cuts(tree: &LightTree, cuts: &[&[(u32, f32)]], weights: &[f64], nor
         emit_range(tree, k, pos, end, v, normal, &mut entries);
         pos = end;
     }
-    (VertexCut { entries, rays: 0, epsilon_used: 0.0, interpolated: true, cell_bits: Vec::new() }, if total > 0.0 { (uncovered / total).min(1.0) } else { 0.0 })
+    (
+        VertexCut {
+            entries,
+            rays: 0,
+            epsilon_used: 0.0,
+            interpolated: true,
+            cell_bits: Vec::new(),
+        },
+        if total > 0.0 {
+            (uncovered / total).min(1.0)
+        } else {
+            0.0
+        },
+    )
 }
 
 #[cfg(test)]
@@ -282,14 +362,18 @@ mod tests {
     use super::*;
     use crate::sphere::DirectionSet;
 
-    /// Agreed cells cell by cell, against a plain per-cell rule: known by every neighbour and the same
-    /// in all; over two words (cells 0–127), with one neighbour's unknown cells holding stray visible
-    /// bits (which must not count).
+    /// Agreed cells cell by cell, against a plain per-cell rule: known by every neighbour and the
+    /// same in all; over two words (cells 0–127), with one neighbour's unknown cells holding stray
+    /// visible bits (which must not count).
     #[test]
     fn agreed_cells_are_those_every_neighbour_knows_alike() {
         let mut rng = crate::math::Rng::new(11);
         let neighbours: Vec<Vec<[u64; 2]>> = (0..3)
-            .map(|_| (0..2).map(|_| [rng.next_u64() | rng.next_u64(), rng.next_u64()]).collect())
+            .map(|_| {
+                (0..2)
+                    .map(|_| [rng.next_u64() | rng.next_u64(), rng.next_u64()])
+                    .collect()
+            })
             .collect();
         let views: Vec<&[[u64; 2]]> = neighbours.iter().map(|b| b.as_slice()).collect();
         let agreed = agreed_cells(&views);
@@ -305,7 +389,10 @@ mod tests {
                 count += 1;
                 assert_eq!(bit(agreed[i / 64][1], i), values[0], "cell {i}");
             } else {
-                assert!(!bit(agreed[i / 64][1], i), "cell {i}: visible but not agreed");
+                assert!(
+                    !bit(agreed[i / 64][1], i),
+                    "cell {i}: visible but not agreed"
+                );
             }
         }
         assert!(count > 4, "only {count} agreed: the test exercises nothing");
@@ -320,7 +407,8 @@ mod tests {
     fn interpolation_follows_each_condition_of_the_rule() {
         let set = DirectionSet::cube(8).unwrap();
         let tree = LightTree::build(&set);
-        let prefix = super::super::refine::ring_weight_prefix(&tree, &vec![[1.0; 3]; tree.leaf_count()]);
+        let prefix =
+            super::super::refine::ring_weight_prefix(&tree, &vec![[1.0; 3]; tree.leaf_count()]);
         let positions = vec![DVec3::ZERO, DVec3::X, DVec3::Z, -DVec3::X, -2.0 * DVec3::Z];
         let up = vec![DVec3::Y; 5];
         let triangles = [[0u32, 1, 2], [0, 2, 3], [0, 3, 4]];
@@ -329,11 +417,29 @@ mod tests {
         let open: Vec<(u32, f32)> = vec![(0, 1.0)];
         let half: Vec<(u32, f32)> = vec![(0, 0.5)];
         let run = |max_edge: f64, normals: &[DVec3], cut_2: &[(u32, f32)]| {
-            let cuts = [open.clone(), open.clone(), cut_2.to_vec(), open.clone(), open.clone()];
+            let cuts = [
+                open.clone(),
+                open.clone(),
+                cut_2.to_vec(),
+                open.clone(),
+                open.clone(),
+            ];
             let cut_of = |u: usize| cuts[u].as_slice();
-            interpolation_weights(0, &positions, normals, &neighbours, &sampled, max_edge, 0.02, &tree, &prefix, &cut_of)
+            interpolation_weights(
+                0,
+                &positions,
+                normals,
+                &neighbours,
+                &sampled,
+                max_edge,
+                0.02,
+                &tree,
+                &prefix,
+                &cut_of,
+            )
         };
-        // Every condition holds: the two sampled neighbours, weighted by inverse distance (equal here).
+        // Every condition holds: the two sampled neighbours, weighted by inverse distance (equal
+        // here).
         let w = run(2.5, &up, &open).expect("interpolated");
         assert_eq!(w.iter().map(|e| e.0).collect::<Vec<_>>(), vec![1, 2]);
         assert!(w.iter().all(|e| (e.1 - 0.5).abs() < 1e-12));
@@ -350,28 +456,78 @@ mod tests {
         assert!(run(2.5, &up, &half).is_none());
         // (b) a sampled vertex is never interpolated, and one sampled neighbour is not enough.
         let cut_of = |_: usize| open.as_slice();
-        assert!(interpolation_weights(1, &positions, &up, &neighbours, &sampled, 2.5, 0.02, &tree, &prefix, &cut_of).is_none());
+        assert!(
+            interpolation_weights(
+                1,
+                &positions,
+                &up,
+                &neighbours,
+                &sampled,
+                2.5,
+                0.02,
+                &tree,
+                &prefix,
+                &cut_of
+            )
+            .is_none()
+        );
         let lone = vec![false, true, false, false, false];
-        assert!(interpolation_weights(0, &positions, &up, &neighbours, &lone, 2.5, 0.02, &tree, &prefix, &cut_of).is_none());
-        // (e) what no neighbour's cut covers: nothing for whole-sphere cuts; for cuts of half the sphere
+        assert!(
+            interpolation_weights(
+                0,
+                &positions,
+                &up,
+                &neighbours,
+                &lone,
+                2.5,
+                0.02,
+                &tree,
+                &prefix,
+                &cut_of
+            )
+            .is_none()
+        );
+        // (e) what no neighbour's cut covers: nothing for whole-sphere cuts; for cuts of half the
+        //     sphere
         // (the root's first child), the share of the hemisphere's weight outside it.
         let totals = HemisphereTotals::new(&tree, &prefix);
         let n = DVec3::new(0.3, 0.9, 0.1).normalize();
         let leaf_weight = |l: usize| (prefix[l + 1] - prefix[l]).dot(n).max(0.0);
         let all: f64 = (0..tree.leaf_count()).map(leaf_weight).sum();
         // The table against a sum over every leaf.
-        assert!((totals.at(n) - all).abs() < 2e-3 * all, "table {} against {all}", totals.at(n));
-        let (_, none) = blend_cuts(&tree, &[&open, &open], &[0.5, 0.5], n, &prefix, totals.at(n));
+        assert!(
+            (totals.at(n) - all).abs() < 2e-3 * all,
+            "table {} against {all}",
+            totals.at(n)
+        );
+        let (_, none) = blend_cuts(
+            &tree,
+            &[&open, &open],
+            &[0.5, 0.5],
+            n,
+            &prefix,
+            totals.at(n),
+        );
         assert_eq!(none, 0.0);
         let first_half: Vec<(u32, f32)> = vec![(tree.nodes()[0].left, 1.0)];
-        let (_, some) = blend_cuts(&tree, &[&first_half, &first_half], &[0.5, 0.5], n, &prefix, totals.at(n));
+        let (_, some) = blend_cuts(
+            &tree,
+            &[&first_half, &first_half],
+            &[0.5, 0.5],
+            n,
+            &prefix,
+            totals.at(n),
+        );
         let half = tree.nodes()[tree.nodes()[0].left as usize].count as usize;
         let expected = (half..tree.leaf_count()).map(leaf_weight).sum::<f64>() / all;
-        assert!(expected > 0.1 && (some - expected).abs() < 0.01, "uncovered {some} against {expected}");
+        assert!(
+            expected > 0.1 && (some - expected).abs() < 0.01,
+            "uncovered {some} against {expected}"
+        );
     }
 
-    /// The greedy set is independent (no two sampled vertices share an edge) and maximal (every other
-    /// vertex has a sampled neighbour), on a grid of triangles.
+    /// The greedy set is independent (no two sampled vertices share an edge) and maximal (every
+    /// other vertex has a sampled neighbour), on a grid of triangles.
     #[test]
     fn sampled_vertices_are_a_maximal_independent_set() {
         let n = 9usize;
@@ -397,17 +553,19 @@ mod tests {
         assert!(count < n * n / 2, "{count} of {} sampled", n * n);
     }
 
-    /// The blend against a per-leaf reference: at every leaf above the horizon, the blended cut's V is
-    /// Σ wᵢ Vᵢ(leaf) of the inputs (0 where an input has no node), nodes are disjoint and in leaf order.
+    /// The blend against a per-leaf reference: at every leaf above the horizon, the blended cut's V
+    /// is Σ wᵢ Vᵢ(leaf) of the inputs (0 where an input has no node), nodes are disjoint and in
+    /// leaf order.
     #[test]
     fn blended_cut_is_the_weighted_mean_at_every_leaf() {
         let set = DirectionSet::cube(8).unwrap();
         let tree = LightTree::build(&set);
         let nodes = tree.nodes();
-        // Two cuts of different depths: a = the root's first half (the second missing), b = nodes of at
-        // most 16 leaves with varying V
+        // Two cuts of different depths: a = the root's first half (the second missing), b = nodes
+        // of at most 16 leaves with varying V
         let a: Vec<(u32, f32)> = vec![(nodes[0].left, 0.8)];
-        // (with gaps, as below a horizon: a coarse node of `a` holds finer nodes of `b` after a gap).
+        // (with gaps, as below a horizon: a coarse node of `a` holds finer nodes of `b` after a
+        // gap).
         let b: Vec<(u32, f32)> = crate::bake::decisions::nodes_of_at_most(&tree, 16, 0)
             .iter()
             .enumerate()
@@ -417,10 +575,20 @@ mod tests {
         let weights = [0.25, 0.75];
         let normal = DVec3::new(0.3, 0.8, 0.2).normalize();
         let (cut, _) = blend_cuts(&tree, &[&a, &b], &weights, normal, &[], 0.0);
-        let leaf_v = |c: &[(u32, f32)], l: u32| c.iter().find(|&&(k, _)| nodes[k as usize].first <= l && l < nodes[k as usize].first + nodes[k as usize].count).map_or(0.0, |e| e.1 as f64);
+        let leaf_v = |c: &[(u32, f32)], l: u32| {
+            c.iter()
+                .find(|&&(k, _)| {
+                    nodes[k as usize].first <= l
+                        && l < nodes[k as usize].first + nodes[k as usize].count
+                })
+                .map_or(0.0, |e| e.1 as f64)
+        };
         let mut last_end = 0;
         for &(k, _) in &cut.entries {
-            assert!(nodes[k as usize].first >= last_end, "nodes overlap or are out of order");
+            assert!(
+                nodes[k as usize].first >= last_end,
+                "nodes overlap or are out of order"
+            );
             last_end = nodes[k as usize].first + nodes[k as usize].count;
         }
         for l in 0..tree.leaf_count() as u32 {
@@ -428,10 +596,16 @@ mod tests {
             let expected = 0.25 * leaf_v(&a, l) + 0.75 * leaf_v(&b, l);
             let got = leaf_v(&cut.entries, l);
             if above {
-                assert!((got - expected).abs() < 1e-6, "leaf {l}: {got} against {expected}");
+                assert!(
+                    (got - expected).abs() < 1e-6,
+                    "leaf {l}: {got} against {expected}"
+                );
             } else {
                 // Below the horizon a leaf keeps its node's value or is dropped with it.
-                assert!(got == 0.0 || (got - expected).abs() < 1e-6, "leaf {l} below the horizon: {got}");
+                assert!(
+                    got == 0.0 || (got - expected).abs() < 1e-6,
+                    "leaf {l} below the horizon: {got}"
+                );
             }
         }
     }

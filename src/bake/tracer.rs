@@ -1,15 +1,18 @@
 //! Ray and cone queries against the object's triangles (obvhs).
 //!
 //! Inputs: a world-space [`Mesh`]. Outputs: two queries, both conservative in the same direction:
-//! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit, CWBVH)?
-//! - [`Tracer::cone_free`]: is *every* ray from `apex` inside a cone, and above the plane through `apex`
-//!   with normal `n`, certainly unoccluded? Traverses a BVH2 with bounding spheres; answers `true` only
-//!   when no triangle's bounding sphere meets the cone above the plane, so a `true` is exact (no ray
-//!   through the cone can hit), while a `false` may be pessimistic. The plane restriction is what makes
-//!   the test useful: only directions above the vertex's horizon matter (Ṽ = V·max(cos, 0)), and the
-//!   vertex's own neighbourhood lies below its tangent plane wherever the surface is locally convex.
+//! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit,
+//!   CWBVH)?
+//! - [`Tracer::cone_free`]: is *every* ray from `apex` inside a cone, and above the plane through
+//!   `apex` with normal `n`, certainly unoccluded? Traverses a BVH2 with bounding spheres; answers
+//!   `true` only when no triangle's bounding sphere meets the cone above the plane, so a `true` is
+//!   exact (no ray through the cone can hit), while a `false` may be pessimistic. The plane
+//!   restriction is what makes the test useful: only directions above the vertex's horizon matter
+//!   (Ṽ = V·max(cos, 0)), and the vertex's own neighbourhood lies below its tangent plane wherever
+//!   the surface is locally convex.
 //!
-//! Invariants: degenerate (zero-area) triangles are kept out of the BVH (they cannot occlude); no IO.
+//! Invariants: degenerate (zero-area) triangles are kept out of the BVH (they cannot occlude); no
+//! IO.
 
 use crate::scene::Mesh;
 use glam::{Vec3, Vec3A};
@@ -45,29 +48,48 @@ impl Tracer {
             .triangles
             .iter()
             .filter_map(|t| {
-                let [a, b, c] = t.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
+                let [a, b, c] =
+                    t.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
                 let area2 = (b - a).cross(c - a).length();
-                (area2.is_finite() && area2 > 0.0).then(|| Triangle { v0: a.into(), v1: b.into(), v2: c.into() })
+                (area2.is_finite() && area2 > 0.0).then(|| Triangle {
+                    v0: a.into(),
+                    v1: b.into(),
+                    v2: c.into(),
+                })
             })
             .collect();
         let spheres = triangles
             .iter()
             .map(|t| {
                 let centre = (t.v0 + t.v1 + t.v2) / 3.0;
-                let radius = (t.v0 - centre).length().max((t.v1 - centre).length()).max((t.v2 - centre).length());
-                Sphere { centre, radius: radius * (1.0 + 1e-5) + 1e-7 }
+                let radius = (t.v0 - centre)
+                    .length()
+                    .max((t.v1 - centre).length())
+                    .max((t.v2 - centre).length());
+                Sphere {
+                    centre,
+                    radius: radius * (1.0 + 1e-5) + 1e-7,
+                }
             })
             .collect();
         let mut build_time = Duration::default();
         let bvh2 = if triangles.is_empty() {
             Bvh2::default()
         } else {
-            obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, BvhBuildParams::fast_build(), &mut build_time)
+            obvhs::bvh2::builder::build_bvh2_from_tris(
+                &triangles,
+                BvhBuildParams::fast_build(),
+                &mut build_time,
+            )
         };
         let cwbvh = if triangles.is_empty() {
             CwBvh::default()
         } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, BvhBuildParams::fast_build(), &mut build_time)
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(
+                &triangles,
+                BvhBuildParams::fast_build(),
+                &mut build_time,
+            )
         };
         let rt_triangles = cwbvh
             .primitive_indices
@@ -77,7 +99,13 @@ impl Tracer {
                 RtTriangle::new(t.v0, t.v1, t.v2)
             })
             .collect();
-        Self { triangles, rt_triangles, spheres, bvh2, cwbvh }
+        Self {
+            triangles,
+            rt_triangles,
+            spheres,
+            bvh2,
+            cwbvh,
+        }
     }
 
     /// Number of triangles in the BVH (degenerate ones excluded).
@@ -87,20 +115,22 @@ impl Tracer {
 
     /// Any hit along the ray (origin, dir) for t in (0, ∞).
     ///
-    /// `#[inline]`: inlined into its callers, obvhs's traversal stays a function of its own; when an
-    /// unrelated change (the rasteriser's parallel split, 2026-11-24) left this function out of line
-    /// with the traversal inlined into it, dragon_100k's bake went 3.00–3.06 → 3.20–3.31 s
+    /// `#[inline]`: inlined into its callers, obvhs's traversal stays a function of its own; when
+    /// an unrelated change (the rasteriser's parallel split, 2026-11-24) left this function out of
+    /// line with the traversal inlined into it, dragon_100k's bake went 3.00–3.06 → 3.20–3.31 s
     /// (rays/s 4.5 → 4.2 M; `cargo bench --bench bake`), and back to 3.05–3.10 s with this hint.
     pub fn occluded(&self, origin: Vec3A, dir: Vec3A) -> bool {
         if self.triangles.is_empty() {
             return false;
         }
         let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
-        !self.cwbvh.ray_traverse_miss(ray, |ray, id| self.rt_triangles[id].intersect(ray))
+        !self
+            .cwbvh
+            .ray_traverse_miss(ray, |ray, id| self.rt_triangles[id].intersect(ray))
     }
 
-    /// True when no ray from `apex` with direction d, d·axis ≥ cos_half_angle and d·n > 0, can hit a
-    /// triangle (see the module doc). `axis` and `n` are unit vectors.
+    /// True when no ray from `apex` with direction d, d·axis ≥ cos_half_angle and d·n > 0, can hit
+    /// a triangle (see the module doc). `axis` and `n` are unit vectors.
     pub fn cone_free(&self, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_half_angle: f32) -> bool {
         if self.bvh2.nodes.is_empty() {
             return true;
@@ -147,13 +177,20 @@ impl Tracer {
     }
 }
 
-/// Does the part of triangle `t` above the plane through `apex` (normal `n`) meet the cone?
-/// The triangle is clipped to the half-space (x − apex)·n > 0; every point of the clipped polygon is a
+/// Does the part of triangle `t` above the plane through `apex` (normal `n`) meet the cone? The
+/// triangle is clipped to the half-space (x − apex)·n > 0; every point of the clipped polygon is a
 /// convex combination of its corners, so the directions from the apex to it lie in the convex cone
-/// spanned by the corner directions, which is inside their bounding cap (centre = normalised sum of the
-/// unit corner directions, radius = the largest angle to a corner). Conservative: true when unsure (a
-/// corner at the apex, a polygon spanning more than a hemisphere of directions).
-fn triangle_meets_cone(t: &Triangle, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_a: f32, sin_a: f32) -> bool {
+/// spanned by the corner directions, which is inside their bounding cap (centre = normalised sum of
+/// the unit corner directions, radius = the largest angle to a corner). Conservative: true when
+/// unsure (a corner at the apex, a polygon spanning more than a hemisphere of directions).
+fn triangle_meets_cone(
+    t: &Triangle,
+    apex: Vec3A,
+    n: Vec3A,
+    axis: Vec3A,
+    cos_a: f32,
+    sin_a: f32,
+) -> bool {
     let verts = [t.v0, t.v1, t.v2];
     let heights = verts.map(|v| (v - apex).dot(n));
     let mut corners: [Vec3A; 4] = [Vec3A::ZERO; 4];
@@ -193,7 +230,10 @@ fn triangle_meets_cone(t: &Triangle, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_a: 
         return true;
     }
     let centre = sum / len;
-    let cos_r = dirs[..count].iter().map(|d| d.dot(centre)).fold(1.0f32, f32::min);
+    let cos_r = dirs[..count]
+        .iter()
+        .map(|d| d.dot(centre))
+        .fold(1.0f32, f32::min);
     if cos_r <= 0.0 {
         return true;
     }
@@ -207,8 +247,8 @@ fn triangle_meets_cone(t: &Triangle, apex: Vec3A, n: Vec3A, axis: Vec3A, cos_a: 
     centre.dot(axis) >= cos_sum - 1e-6
 }
 
-/// Does the sphere (c, r) meet the infinite cone with apex `apex`, unit axis and half-angle α (given
-/// by its cosine and sine)? Conservative: true when unsure.
+/// Does the sphere (c, r) meet the infinite cone with apex `apex`, unit axis and half-angle α
+/// (given by its cosine and sine)? Conservative: true when unsure.
 #[inline]
 fn sphere_meets_cone(c: Vec3A, r: f32, apex: Vec3A, axis: Vec3A, cos_a: f32, sin_a: f32) -> bool {
     let q = c - apex;

@@ -1,18 +1,19 @@
 //! Ashikhmin's distribution-based BRDF with a sum-of-SRBF distribution (method.md §3).
 //!
-//! Convention: see [`crate::brdf`] — f_r without the cosine, local directions away from the surface.
+//! Convention: see [`crate::brdf`] — f_r without the cosine, local directions away from the
+//! surface.
 //!
-//! The static term s = F(wi·h) / (4 d), d = k1 + k2 − k1 k2. The spec writes d as 1 − (1 − k1)(1 − k2),
-//! which is the same number but cancels catastrophically when both directions graze (k1, k2 → 0: the
-//! named hard case). We compute d = k1 + k2·(1 − k1): every term is non-negative on [0, 1]², so there
-//! is no cancellation anywhere, and d ≥ max(k1, k2). d vanishes only when both directions lie exactly on
-//! the horizon; there it is floored at [`DENOMINATOR_FLOOR`], which keeps s finite (s ≤ 1/(4·1e-12)).
-//! Every use multiplies s by the cosine k1 (or k2) of a direction, and k1·s ≤ F/4, so the floor never
-//! changes a rendered value by more than the floor itself.
+//! The static term s = F(wi·h) / (4 d), d = k1 + k2 − k1 k2. The spec writes d as 1 − (1 − k1)(1 −
+//! k2), which is the same number but cancels catastrophically when both directions graze (k1, k2 →
+//! 0: the named hard case). We compute d = k1 + k2·(1 − k1): every term is non-negative on [0, 1]²,
+//! so there is no cancellation anywhere, and d ≥ max(k1, k2). d vanishes only when both directions
+//! lie exactly on the horizon; there it is floored at [`DENOMINATOR_FLOOR`], which keeps s finite
+//! (s ≤ 1/(4·1e-12)). Every use multiplies s by the cosine k1 (or k2) of a direction, and k1·s ≤
+//! F/4, so the floor never changes a rendered value by more than the floor itself.
 //!
-//! Inputs: local unit directions, F0, a lobe set and coefficients. Outputs: finite, non-negative values
-//! when the coefficients are non-negative. Invariant: f_s(wi, wo) = f_s(wo, wi) exactly, rounding included (s is
-//! computed from symmetric parts: wi·wo and the cosines ordered by size).
+//! Inputs: local unit directions, F0, a lobe set and coefficients. Outputs: finite, non-negative
+//! values when the coefficients are non-negative. Invariant: f_s(wi, wo) = f_s(wo, wi) exactly,
+//! rounding included (s is computed from symmetric parts: wi·wo and the cosines ordered by size).
 
 use super::fresnel::schlick;
 use crate::sphere::LobeSet;
@@ -37,8 +38,9 @@ pub fn half_vector(wi: DVec3, wo: DVec3) -> Option<DVec3> {
 }
 
 /// The half-vector's cosines without a local frame, from k1 = wi·n, k2 = wo·n and c = wi·wo (unit
-/// directions): (wi·h = wo·h, h·n) = ((1 + c), (k1 + k2)) / |wi + wo| with |wi + wo| = √(2 + 2c) (one
-/// square root). `None` when wi is at or below the horizon or wi = −wo. What isotropic lobes need.
+/// directions): (wi·h = wo·h, h·n) = ((1 + c), (k1 + k2)) / |wi + wo| with |wi + wo| = √(2 + 2c)
+/// (one square root). `None` when wi is at or below the horizon or wi = −wo. What isotropic lobes
+/// need.
 #[inline]
 pub fn half_vector_cosines(k1: f64, k2: f64, c: f64) -> Option<(f64, f64)> {
     let (valid, wo_h, cos_h) = half_vector_cosines_masked(k1, k2, c);
@@ -46,7 +48,8 @@ pub fn half_vector_cosines(k1: f64, k2: f64, c: f64) -> Option<(f64, f64)> {
 }
 
 /// [`half_vector_cosines`] without a branch on the data, for loops over many directions at once:
-/// (whether there is a half-vector, wi·h, h·n), the cosines finite but meaningless when there is none.
+/// (whether there is a half-vector, wi·h, h·n), the cosines finite but meaningless when there is
+/// none.
 #[inline(always)]
 pub fn half_vector_cosines_masked(k1: f64, k2: f64, c: f64) -> (bool, f64, f64) {
     let len2 = 2.0 + 2.0 * c;
@@ -93,7 +96,9 @@ impl DistributionBrdf {
         if s == 0.0 {
             return 0.0;
         }
-        let Some(h) = half_vector(wi, wo) else { return 0.0 };
+        let Some(h) = half_vector(wi, wo) else {
+            return 0.0;
+        };
         self.lobes.p(&self.coefficients, h) * s
     }
 
@@ -115,7 +120,12 @@ mod tests {
     fn random_brdf(rng: &mut Rng, layout: LobeLayout, lambda: f64) -> DistributionBrdf {
         let lobes = LobeSet::new(layout, lambda).unwrap();
         let coefficients = (0..lobes.len()).map(|_| rng.range(0.0, 2.0)).collect();
-        DistributionBrdf { lobes, coefficients, f0: rng.range(0.0, 1.0), rho_d: 0.3 }
+        DistributionBrdf {
+            lobes,
+            coefficients,
+            f0: rng.range(0.0, 1.0),
+            rho_d: 0.3,
+        }
     }
 
     #[test]
@@ -129,7 +139,10 @@ mod tests {
                 let a = brdf.specular(wi, wo);
                 let b = brdf.specular(wo, wi);
                 assert!(a.is_finite() && a >= 0.0);
-                assert!((a - b).abs() <= 1e-12 * a.abs().max(1e-300), "f({wi},{wo})={a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-12 * a.abs().max(1e-300),
+                    "f({wi},{wo})={a} vs {b}"
+                );
             }
         }
     }

@@ -1,30 +1,31 @@
 //! Energy rows: the directional albedo of each lobe (method.md §5).
 //!
-//! g_j(wo) = ∫_{H²} G(h·ξ_j) s(wi, wo) (wi·n) dwi  — the cosine included (eq. 10; the paper's eq. 14-15
-//! omit it). The fit's energy constraint for outgoing direction wo^l is Σ_j c_j g_j(wo^l) ≤ 1 − ρd.
+//! g_j(wo) = ∫_{H²} G(h·ξ_j) s(wi, wo) (wi·n) dwi — the cosine included (eq. 10; the paper's eq.
+//! 14-15 omit it). The fit's energy constraint for outgoing direction wo^l is Σ_j c_j g_j(wo^l) ≤ 1
+//! − ρd.
 //!
 //! **Integration in half-vector space.** With wi = 2(wo·h)h − wo and dwi = 4(wo·h) dwh,
 //!   g_j(wo) = ∫ G(h·ξ_j) F(wo·h) k1 (wo·h) / d(k1, k2) dwh,  k1 = 2(wo·h)(h·n) − k2 > 0, wo·h > 0.
 //! Each lobe is integrated in polar coordinates (t, φ) about its own centre ξ_j, so a lobe of any
 //! sharpness (λ from 1 to 10⁴) is resolved: t runs to the lobe's support (G > e^-40), φ by the
 //! trapezoid rule. Along each great-circle ray h(t) = cos t ξ + sin t u(φ), both constraints are
-//! sinusoids in t (wo·h = A cos t + B sin t; 2(wo·h)(n·h) − k2 = C0 + C1 cos 2t + C2 sin 2t), so their
-//! roots are found in closed form and Gauss–Legendre runs only on sub-intervals where the integrand is
-//! smooth. The table is checked against brute-force quadrature over wi in the tests.
+//! sinusoids in t (wo·h = A cos t + B sin t; 2(wo·h)(n·h) − k2 = C0 + C1 cos 2t + C2 sin 2t), so
+//! their roots are found in closed form and Gauss–Legendre runs only on sub-intervals where the
+//! integrand is smooth. The table is checked against brute-force quadrature over wi in the tests.
 //!
 //! Because F is affine in F0, each entry is stored as (a, b) with g = F0·a + b.
 //!
-//! Isotropic (ring) lobes: g of a ring lobe is the azimuthal average of g of the Gaussian lobe it is
-//! made of, computed by the trapezoid rule over the azimuth of wo (smooth and periodic: it converges
-//! geometrically).
+//! Isotropic (ring) lobes: g of a ring lobe is the azimuthal average of g of the Gaussian lobe it
+//! is made of, computed by the trapezoid rule over the azimuth of wo (smooth and periodic: it
+//! converges geometrically).
 //!
 //! Inputs: a [`LobeSet`] and outgoing directions (local, z > 0). Outputs: N_l × J tables.
-//! Invariants: entries ≥ 0; the default outgoing set is the paper's N_l = 192 (an 8×8 hemicube) plus
-//! 64 directions near the horizon for anisotropic lobes, and 33 elevations for isotropic ones (where
-//! azimuth carries no information); see [`default_outgoing`].
+//! Invariants: entries ≥ 0; the default outgoing set is the paper's N_l = 192 (an 8×8 hemicube)
+//! plus 64 directions near the horizon for anisotropic lobes, and 33 elevations for isotropic ones
+//! (where azimuth carries no information); see [`default_outgoing`].
 
-use super::fresnel::schlick_parts;
 use super::dbrdf::denominator;
+use super::fresnel::schlick_parts;
 use crate::math::GaussLegendre;
 use crate::sphere::lobes::hemicube_directions;
 use crate::sphere::{Frame, LobeSet, srbf};
@@ -47,21 +48,27 @@ pub struct EnergyQuadrature {
 
 impl Default for EnergyQuadrature {
     fn default() -> Self {
-        Self { azimuth_points: 48, radial_points: 12, ring_points: 24, cut_refinement: 4 }
+        Self {
+            azimuth_points: 48,
+            radial_points: 12,
+            ring_points: 24,
+            cut_refinement: 4,
+        }
     }
 }
 
-/// The default outgoing directions: an 8×8 hemicube (192, the paper's N_l), the normal, and two rings
-/// of 32 near the horizon for anisotropic lobes (257 in all); 32 elevations θ_k = (π/2)(k + ½)/32 at
-/// azimuth 0 plus one at the horizon for isotropic ones (33).
+/// The default outgoing directions: an 8×8 hemicube (192, the paper's N_l), the normal, and two
+/// rings of 32 near the horizon for anisotropic lobes (257 in all); 32 elevations θ_k = (π/2)(k +
+/// ½)/32 at azimuth 0 plus one at the horizon for isotropic ones (33).
 ///
-/// The property test `tests/properties.rs` found both additions. The paper's 192 directions reach only
-/// 84.6° from the normal, and the directional albedo of a fitted p keeps rising towards grazing: a broad
-/// (λ = 1) fit had albedo 0.87 at the lowest row and 1.6 at the horizon. The rings at cos θ = 0.03 and on
-/// the horizon (cos θ = 1e-6) close that gap; below 84.6° the albedo of such fits is convex in cos θ, so
-/// it stays under the bound between the rows. And the normal is a corner of four of the hemicube's
-/// cells, ~10° from the nearest rows: a hemicube-3 fit at λ = 6.6 peaked there at 1.021 (1.009 at 7.4°);
-/// with the normal as a row its largest albedo over a 60 × 120 grid of directions is 1.0000.
+/// The property test `tests/properties.rs` found both additions. The paper's 192 directions reach
+/// only 84.6° from the normal, and the directional albedo of a fitted p keeps rising towards
+/// grazing: a broad (λ = 1) fit had albedo 0.87 at the lowest row and 1.6 at the horizon. The rings
+/// at cos θ = 0.03 and on the horizon (cos θ = 1e-6) close that gap; below 84.6° the albedo of such
+/// fits is convex in cos θ, so it stays under the bound between the rows. And the normal is a
+/// corner of four of the hemicube's cells, ~10° from the nearest rows: a hemicube-3 fit at λ = 6.6
+/// peaked there at 1.021 (1.009 at 7.4°); with the normal as a row its largest albedo over a 60 ×
+/// 120 grid of directions is 1.0000.
 pub fn default_outgoing(lobes: &LobeSet) -> Vec<DVec3> {
     const HORIZON: f64 = 1e-6;
     if lobes.layout().is_isotropic() {
@@ -86,7 +93,13 @@ pub fn default_outgoing(lobes: &LobeSet) -> Vec<DVec3> {
 
 /// (a, b) of g for a Gaussian lobe at centre `xi` (local, unit), sharpness λ, outgoing `wo` (local,
 /// unit): g = F0·a + b.
-pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrature, rule: &GaussLegendre) -> (f64, f64) {
+pub fn lobe_albedo_parts(
+    xi: DVec3,
+    lambda: f64,
+    wo: DVec3,
+    quad: &EnergyQuadrature,
+    rule: &GaussLegendre,
+) -> (f64, f64) {
     let k2 = wo.z;
     if k2.is_nan() || k2 <= 0.0 {
         return (0.0, 0.0);
@@ -96,14 +109,21 @@ pub fn lobe_albedo_parts(xi: DVec3, lambda: f64, wo: DVec3, quad: &EnergyQuadrat
     if cut {
         // The constraints cut the lobe's support: the azimuthal integrand has kinks where the cut
         // structure changes and the trapezoid rule converges only algebraically there. Refine.
-        let (a, b, _) = lobe_albedo_azimuths(xi, lambda, wo, base * quad.cut_refinement.max(1), rule);
+        let (a, b, _) =
+            lobe_albedo_azimuths(xi, lambda, wo, base * quad.cut_refinement.max(1), rule);
         return (a, b);
     }
     (a, b)
 }
 
 /// The integral with `n_phi` azimuths; the flag says whether a constraint cut the lobe's support.
-fn lobe_albedo_azimuths(xi: DVec3, lambda: f64, wo: DVec3, n_phi: usize, rule: &GaussLegendre) -> (f64, f64, bool) {
+fn lobe_albedo_azimuths(
+    xi: DVec3,
+    lambda: f64,
+    wo: DVec3,
+    n_phi: usize,
+    rule: &GaussLegendre,
+) -> (f64, f64, bool) {
     let k2 = wo.z;
     let t_max = srbf::support_cosine(lambda, 40.0).acos().max(1e-9);
     // Radial panels packed towards the peak (the integrand ~ t·exp(−λt²) peaks at t_max/√80).
@@ -147,8 +167,8 @@ fn lobe_albedo_azimuths(xi: DVec3, lambda: f64, wo: DVec3, n_phi: usize, rule: &
             if t1 - t0 <= 0.0 {
                 continue;
             }
-            // Skip sub-intervals that are invalid at their midpoint (the constraints change sign only at
-            // the cuts).
+            // Skip sub-intervals that are invalid at their midpoint (the constraints change sign
+            // only at the cuts).
             let tm = 0.5 * (t0 + t1);
             let (cm, hm) = (a1 * tm.cos() + b1 * tm.sin(), a2 * tm.cos() + b2 * tm.sin());
             if !(cm > 0.0 && 2.0 * cm * hm - k2 > 0.0) {
@@ -175,7 +195,13 @@ fn lobe_albedo_azimuths(xi: DVec3, lambda: f64, wo: DVec3, n_phi: usize, rule: &
 }
 
 /// (a, b) of g for lobe `j` of `lobes` (Gaussian or ring) at outgoing `wo`.
-pub fn lobe_set_albedo_parts(lobes: &LobeSet, j: usize, wo: DVec3, quad: &EnergyQuadrature, rule: &GaussLegendre) -> (f64, f64) {
+pub fn lobe_set_albedo_parts(
+    lobes: &LobeSet,
+    j: usize,
+    wo: DVec3,
+    quad: &EnergyQuadrature,
+    rule: &GaussLegendre,
+) -> (f64, f64) {
     let xi = lobes.centres()[j];
     if !lobes.layout().is_isotropic() {
         return lobe_albedo_parts(xi, lobes.lambda(), wo, quad, rule);
@@ -211,7 +237,11 @@ impl EnergyTable {
         let rule = GaussLegendre::new(quad.radial_points);
         let rows: Vec<Vec<(f64, f64)>> = outgoing
             .par_iter()
-            .map(|&wo| (0..j_count).map(|j| lobe_set_albedo_parts(lobes, j, wo, quad, &rule)).collect())
+            .map(|&wo| {
+                (0..j_count)
+                    .map(|j| lobe_set_albedo_parts(lobes, j, wo, quad, &rule))
+                    .collect()
+            })
             .collect();
         let mut a = Vec::with_capacity(outgoing.len() * j_count);
         let mut b = Vec::with_capacity(outgoing.len() * j_count);
@@ -221,23 +251,36 @@ impl EnergyTable {
                 b.push(pb);
             }
         }
-        Self { outgoing: outgoing.to_vec(), lobes: j_count, a, b }
+        Self {
+            outgoing: outgoing.to_vec(),
+            lobes: j_count,
+            a,
+            b,
+        }
     }
 
     /// With the default outgoing set and quadrature.
     pub fn with_defaults(lobes: &LobeSet) -> Self {
-        Self::new(lobes, &default_outgoing(lobes), &EnergyQuadrature::default())
+        Self::new(
+            lobes,
+            &default_outgoing(lobes),
+            &EnergyQuadrature::default(),
+        )
     }
 
     /// [`EnergyTable::with_defaults`], remembered per lobe set (layout and λ) for the life of the
-    /// process: the table depends on nothing else (F0 enters as g = F0·a + b), and integrating it is
-    /// the bulk of a fit's time (a few hundred ms per lobe), so a session re-fitting on every stroke
-    /// pays it once. At most 8 lobe sets are kept.
+    /// process: the table depends on nothing else (F0 enters as g = F0·a + b), and integrating it
+    /// is the bulk of a fit's time (a few hundred ms per lobe), so a session re-fitting on every
+    /// stroke pays it once. At most 8 lobe sets are kept.
     pub fn cached(lobes: &LobeSet) -> std::sync::Arc<Self> {
         use std::sync::{Arc, Mutex};
         static CACHE: Mutex<Vec<(String, Arc<EnergyTable>)>> = Mutex::new(Vec::new());
         let key = format!("{:?}/{:016x}", lobes.layout(), lobes.lambda().to_bits());
-        if let Some(hit) = CACHE.lock().ok().and_then(|c| c.iter().find(|(k, _)| *k == key).map(|(_, t)| t.clone())) {
+        if let Some(hit) = CACHE
+            .lock()
+            .ok()
+            .and_then(|c| c.iter().find(|(k, _)| *k == key).map(|(_, t)| t.clone()))
+        {
             return hit;
         }
         let table = Arc::new(Self::with_defaults(lobes));
@@ -273,13 +316,21 @@ impl EnergyTable {
 
     /// The full N_l × J matrix, row-major, for a given F0.
     pub fn matrix(&self, f0: f64) -> Vec<f64> {
-        self.a.iter().zip(&self.b).map(|(a, b)| f0 * a + b).collect()
+        self.a
+            .iter()
+            .zip(&self.b)
+            .map(|(a, b)| f0 * a + b)
+            .collect()
     }
 
     /// Directional albedo Σ_j c_j g^l_j of a fitted p for each outgoing direction.
     pub fn albedo(&self, coefficients: &[f64], f0: f64) -> Vec<f64> {
         (0..self.rows())
-            .map(|l| (0..self.lobes).map(|j| coefficients.get(j).copied().unwrap_or(0.0) * self.entry(l, j, f0)).sum())
+            .map(|l| {
+                (0..self.lobes)
+                    .map(|j| coefficients.get(j).copied().unwrap_or(0.0) * self.entry(l, j, f0))
+                    .sum()
+            })
             .collect()
     }
 }
@@ -289,8 +340,8 @@ mod tests {
     use super::*;
     use crate::brdf::dbrdf::static_term;
 
-    /// Brute force: ∫ G s k1 dwi directly in wi-space (no half-vector change of variables), midpoint
-    /// rule on a fine (θi, φi) grid in the normal frame.
+    /// Brute force: ∫ G s k1 dwi directly in wi-space (no half-vector change of variables),
+    /// midpoint rule on a fine (θi, φi) grid in the normal frame.
     fn brute(xi: DVec3, lambda: f64, wo: DVec3, f0: f64, n_theta: usize) -> f64 {
         let n_phi = 4 * n_theta;
         let (dt, dp) = (0.5 * PI / n_theta as f64, 2.0 * PI / n_phi as f64);
@@ -313,15 +364,33 @@ mod tests {
         let quad = EnergyQuadrature::default();
         let rule = GaussLegendre::new(quad.radial_points);
         let cases = [
-            (DVec3::new(0.3, 0.1, 0.9).normalize(), 1.0, DVec3::new(0.5, 0.2, 0.8).normalize(), 200),
-            (DVec3::new(0.3, 0.1, 0.9).normalize(), 5000.0, DVec3::new(0.5, 0.2, 0.8).normalize(), 1200),
-            (DVec3::new(0.9, 0.0, 0.2).normalize(), 81.06, DVec3::new(0.2, -0.3, 0.6).normalize(), 400),
+            (
+                DVec3::new(0.3, 0.1, 0.9).normalize(),
+                1.0,
+                DVec3::new(0.5, 0.2, 0.8).normalize(),
+                200,
+            ),
+            (
+                DVec3::new(0.3, 0.1, 0.9).normalize(),
+                5000.0,
+                DVec3::new(0.5, 0.2, 0.8).normalize(),
+                1200,
+            ),
+            (
+                DVec3::new(0.9, 0.0, 0.2).normalize(),
+                81.06,
+                DVec3::new(0.2, -0.3, 0.6).normalize(),
+                400,
+            ),
         ];
         for (xi, lambda, wo, n) in cases {
             let (a, b) = lobe_albedo_parts(xi, lambda, wo, &quad, &rule);
             let got = 0.04 * a + b;
             let want = brute(xi, lambda, wo, 0.04, n);
-            assert!(((got - want) / want).abs() < 1e-3, "λ={lambda} got={got} want={want}");
+            assert!(
+                ((got - want) / want).abs() < 1e-3,
+                "λ={lambda} got={got} want={want}"
+            );
         }
     }
 
@@ -333,7 +402,9 @@ mod tests {
         assert!(std::sync::Arc::ptr_eq(&a, &b));
         let fresh = EnergyTable::with_defaults(&lobes);
         assert_eq!(a.matrix(0.04), fresh.matrix(0.04));
-        let other = EnergyTable::cached(&LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 6 }, 41.0).unwrap());
+        let other = EnergyTable::cached(
+            &LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 6 }, 41.0).unwrap(),
+        );
         assert!(!std::sync::Arc::ptr_eq(&a, &other), "λ is part of the key");
     }
 }

@@ -1,8 +1,8 @@
 //! Schlick's Fresnel approximation, F(c) = F0 + (1 − F0)(1 − c)^5, c = wi·h.
 //!
-//! Inputs: F0 ∈ [0, 1] and a cosine (clamped to [0, 1]). Outputs: F ∈ [F0, 1]. Because F is affine in
-//! F0, F = F0·a(c) + b(c) with a = 1 − (1 − c)^5 and b = (1 − c)^5: tables that integrate F (the energy
-//! rows) are stored as two parts and combined for any F0 without re-integrating.
+//! Inputs: F0 ∈ [0, 1] and a cosine (clamped to [0, 1]). Outputs: F ∈ [F0, 1]. Because F is affine
+//! in F0, F = F0·a(c) + b(c) with a = 1 − (1 − c)^5 and b = (1 − c)^5: tables that integrate F (the
+//! energy rows) are stored as two parts and combined for any F0 without re-integrating.
 
 /// (1 − c)^5 with c clamped to [0, 1].
 #[inline]

@@ -4,10 +4,10 @@
 //! # Conventions (the project's; every stage relies on them)
 //!
 //! * **World frame** is glTF's: right-handed, **+Y up**.
-//! * **Direction → (u, v)**: for a unit direction `d`,
-//!   `u = 0.5 + atan2(d.x, -d.z) / (2π)` in `[0, 1)` and `v = acos(clamp(d.y, -1, 1)) / π` in `[0, 1]`.
-//!   Texel column = `u·W`, row = `v·H`; **row 0 is the top (+Y)**. The image centre
-//!   (`u = v = 0.5`) is direction **-Z**; `u = 0.75` is +X, `u = 0.25` is -X, `u = 0` (the left/right seam) is +Z.
+//! * **Direction → (u, v)**: for a unit direction `d`, `u = 0.5 + atan2(d.x, -d.z) / (2π)` in `[0,
+//!   1)` and `v = acos(clamp(d.y, -1, 1)) / π` in `[0, 1]`. Texel column = `u·W`, row = `v·H`;
+//!   **row 0 is the top (+Y)**. The image centre (`u = v = 0.5`) is direction **-Z**; `u = 0.75` is
+//!   +X, `u = 0.25` is -X, `u = 0` (the left/right seam) is +Z.
 //! * **(u, v) → direction**: `φ = 2π(u − 0.5)`, `θ = πv`, `d = (sinθ sinφ, cosθ, −sinθ cosφ)`.
 //!   [`direction_to_uv`] and [`uv_to_direction`] are inverses of each other away from the poles.
 //! * **Texel centres** are at `((i + 0.5)/W, (j + 0.5)/H)`. The texel in row `j` spans
@@ -328,11 +328,15 @@ impl EnvMap {
         self.lookup_uv(u, v)
     }
 
-    /// Radiance of the texel holding direction `d` in the environment rotated by `rotation_rad` (the map
-    /// read as constant over each texel: what the Monte Carlo reference integrates). Non-finite `d`
-    /// returns black.
+    /// Radiance of the texel holding direction `d` in the environment rotated by `rotation_rad`
+    /// (the map read as constant over each texel: what the Monte Carlo reference integrates).
+    /// Non-finite `d` returns black.
     pub fn lookup_nearest(&self, d: DVec3, rotation_rad: f64) -> [f64; 3] {
-        let d = if rotation_rad == 0.0 { d } else { rotate_y(d, -rotation_rad) };
+        let d = if rotation_rad == 0.0 {
+            d
+        } else {
+            rotate_y(d, -rotation_rad)
+        };
         let (u, v) = direction_to_uv(d);
         if !u.is_finite() || !v.is_finite() {
             return [0.0; 3];

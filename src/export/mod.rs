@@ -1,19 +1,26 @@
 //! From a fitted material to the exporters' plain description: the tabulated p(h), the standard
-//! fallback ([`pbr_fallback`]), the MERL isotropic projection, the scene (mesh, camera, environment)
-//! and one [`Provenance`] for every file.
+//! fallback ([`pbr_fallback`]), the MERL isotropic projection, the scene (mesh, camera,
+//! environment) and one [`Provenance`] for every file.
 //!
 //! Inputs: a [`Material`], a table resolution, a [`Provenance`], optionally the scene's mesh.
-//! Outputs: a [`glint_exporters::MaterialDesc`] (and a [`glint_exporters::SceneMesh`]) — the exporters
-//! crate knows file formats, this module knows the BRDF.
+//! Outputs: a [`glint_exporters::MaterialDesc`] (and a [`glint_exporters::SceneMesh`]) — the
+//! exporters crate knows file formats, this module knows the BRDF.
 //!
 //! Invariants: no IO except hashing the material file a provenance names; deterministic.
 
 pub mod pbr_fallback;
 mod provenance;
+mod scene;
 
-pub use pbr_fallback::{FallbackFit, ISOTROPY_TOLERANCE, azimuthal_deviation, fit_fallback, fit_fallback_anisotropic, material_fallback};
-pub use provenance::{Provenance, Tool};
 use pbr_fallback::eval_table;
+pub use pbr_fallback::{
+    FallbackFit, ISOTROPY_TOLERANCE, azimuthal_deviation, fit_fallback, fit_fallback_anisotropic,
+    material_fallback,
+};
+pub use provenance::{Provenance, Tool};
+pub use scene::{
+    ExportSceneError, SceneChoice, export_scene, scene_camera, scene_environment, scene_mesh,
+};
 
 use crate::brdf::dbrdf::static_term;
 use crate::fit::material::Material;
@@ -23,11 +30,24 @@ use glam::DVec3;
 use glint_exporters::{MaterialDesc, MerlTable};
 use std::f64::consts::PI;
 
+/// The name an export gives its files: the material file's stem, with every character but ASCII
+/// letters, digits, `_` and `-` replaced by `_`.
+pub fn material_name(path: &std::path::Path) -> String {
+    let stem = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("material");
+    stem.replace(
+        |c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-'),
+        "_",
+    )
+}
+
 /// Default resolution of the exported p(h) table (see exporters/README.md for its accuracy).
 pub const EXPORT_TABLE_RESOLUTION: usize = 512;
 /// The MERL table of the material's isotropic projection: for isotropic layouts the exact lobe sum
-/// (ring lobes depend on h·n only, so no averaging is needed); for anisotropic ones the BRDF from the
-/// table averaged over 8 rotations about the normal.
+/// (ring lobes depend on h·n only, so no averaging is needed); for anisotropic ones the BRDF from
+/// the table averaged over 8 rotations about the normal.
 pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> MerlTable {
     let (rho_d, f0) = (material.rho_d, material.f0);
     if material.layout.is_isotropic() {
@@ -36,7 +56,9 @@ pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> Merl
             if wi.z <= 0.0 || wo.z <= 0.0 {
                 return [0.0; 3];
             }
-            let Some(h) = (wi + wo).try_normalize() else { return rho_d.map(|r| r / PI) };
+            let Some(h) = (wi + wo).try_normalize() else {
+                return rho_d.map(|r| r / PI);
+            };
             let s = static_term(wi, wo, f0);
             std::array::from_fn(|c| rho_d[c] / PI + lobes.p(&material.coefficients[c], h) * s)
         });
@@ -58,15 +80,28 @@ pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> Merl
     })
 }
 
-/// The exporters' description of a material: lobe table, p(h) at `table_resolution`, fallback, MERL.
-pub fn material_desc(material: &Material, name: &str, table_resolution: usize, mut provenance: Provenance) -> Result<MaterialDesc, SphereError> {
+/// The exporters' description of a material: lobe table, p(h) at `table_resolution`, fallback,
+/// MERL.
+pub fn material_desc(
+    material: &Material,
+    name: &str,
+    table_resolution: usize,
+    mut provenance: Provenance,
+) -> Result<MaterialDesc, SphereError> {
     let lobes: LobeSet = material.lobes()?;
-    let coefficients = [material.coefficients[0].as_slice(), material.coefficients[1].as_slice(), material.coefficients[2].as_slice()];
+    let coefficients = [
+        material.coefficients[0].as_slice(),
+        material.coefficients[1].as_slice(),
+        material.coefficients[2].as_slice(),
+    ];
     let table = PhTable::build_unfiltered(&lobes, coefficients, table_resolution);
     let isotropic = material.layout.is_isotropic();
     let fit = material_fallback(material, &lobes, &table);
     if fit.fallback.anisotropy.is_some() {
-        provenance.set("fallback_isotropic_relative_error", format!("{:?}", fit.isotropic_relative_error));
+        provenance.set(
+            "fallback_isotropic_relative_error",
+            format!("{:?}", fit.isotropic_relative_error),
+        );
     }
     let fallback = fit.fallback;
     let merl = merl_table(material, &lobes, &table);
@@ -85,46 +120,11 @@ pub fn material_desc(material: &Material, name: &str, table_resolution: usize, m
         brdf_convention: glint_exporters::material::brdf_convention(isotropic).into(),
         frame_convention: glint_exporters::material::FRAME_CONVENTION.into(),
         provenance: provenance.into_map(),
-        table: glint_exporters::PhTable { resolution: table.resolution() as u32, texels: table.texels().to_vec() },
+        table: glint_exporters::PhTable {
+            resolution: table.resolution() as u32,
+            texels: table.texels().to_vec(),
+        },
         fallback,
         merl: Some(merl),
     })
 }
-
-/// The scene's mesh for the glTF and USD exporters.
-pub fn scene_mesh(mesh: &crate::scene::Mesh, tangents: Option<&[glam::Vec4]>) -> glint_exporters::SceneMesh {
-    glint_exporters::SceneMesh {
-        positions: mesh.positions.iter().map(|p| p.to_array()).collect(),
-        normals: mesh.normals.iter().map(|n| n.to_array()).collect(),
-        tangents: tangents.map(|t| t.iter().map(|v| v.to_array()).collect()),
-        uvs: mesh.uvs.as_ref().map(|u| u.iter().map(|v| v.to_array()).collect()),
-        indices: mesh.triangles.iter().flatten().copied().collect(),
-        camera: None,
-        environment: None,
-    }
-}
-
-/// The exporters' camera for a glint camera rendering a `width` × `height` image (its aspect follows
-/// the image, as `glint render` sets it).
-pub fn scene_camera(camera: &crate::scene::Camera, width: u32, height: u32) -> glint_exporters::SceneCamera {
-    let m = camera.world_from_camera;
-    let unit = |v: glam::Vec3| v.as_dvec3().normalize_or_zero().to_array();
-    glint_exporters::SceneCamera {
-        name: camera.name.clone(),
-        eye: camera.eye().as_dvec3().to_array(),
-        forward: unit(-m.z_axis.truncate()),
-        up: unit(m.y_axis.truncate()),
-        yfov_rad: camera.yfov_rad as f64,
-        width,
-        height,
-        znear: camera.znear as f64,
-        zfar: camera.zfar.map(|f| f as f64),
-    }
-}
-
-/// The exporters' environment: the map's texels in glint's orientation, rotated by `rotation_rad`.
-pub fn scene_environment(env: &crate::env::EnvMap, rotation_rad: f64) -> glint_exporters::SceneEnvironment {
-    let source = std::path::Path::new(env.source()).file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
-    glint_exporters::SceneEnvironment { source, width: env.width(), height: env.height(), texels: env.texels().to_vec(), rotation_rad }
-}
-

@@ -1,11 +1,11 @@
-//! Where an export came from, written into every file it makes (glTF extras, USD customData, the EXR
-//! header, the Mitsuba scene): one set of keys for the CLI and the app.
+//! Where an export came from, written into every file it makes (glTF extras, USD customData, the
+//! EXR header, the Mitsuba scene): one set of keys for the CLI and the app.
 //!
 //! Keys: `tool` (glint and its version; "app" when the app exported), `fit_residual_rms`,
-//! `fit_pixels`, and where known `material_file` with `material_hash_fnv1a64`, `bake`, `scene_file`,
-//! `env_file`, `env_rotation_deg` (only when not 0), and what the fallback fit adds
-//! (`fallback_isotropic_relative_error`). File names only, never folders.
-//! Invariants: hashing the material file is the only IO.
+//! `fit_pixels`, and where known `material_file` with `material_hash_fnv1a64`, `bake`,
+//! `scene_file`, `env_file`, `env_rotation_deg` (only when not 0), and what the fallback fit adds
+//! (`fallback_isotropic_relative_error`). File names only, never folders. Invariants: hashing the
+//! material file is the only IO.
 
 use crate::bake::file::{BakeFileError, hash_file};
 use crate::fit::material::Material;
@@ -26,7 +26,9 @@ pub struct Provenance {
 }
 
 fn file_name(p: &Path) -> String {
-    p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()
+    p.file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 impl Provenance {
@@ -34,8 +36,14 @@ impl Provenance {
     pub fn new(tool: Tool, material: &Material) -> Self {
         let mut p = Self::default();
         let suffix = if tool == Tool::App { " app" } else { "" };
-        p.set("tool", format!("glint {}{suffix}", env!("CARGO_PKG_VERSION")));
-        p.set("fit_residual_rms", format!("{:?}", material.fit.residual_rms));
+        p.set(
+            "tool",
+            format!("glint {}{suffix}", env!("CARGO_PKG_VERSION")),
+        );
+        p.set(
+            "fit_residual_rms",
+            format!("{:?}", material.fit.residual_rms),
+        );
         p.set("fit_pixels", material.fit.pixels.to_string());
         p
     }

@@ -1,8 +1,8 @@
 //! `glint fit --dump-qp`: a fit's problem and solution as `.npy` files anyone can re-solve.
 //!
 //! Input: a [`FitOutcome`] and its [`FitSettings`]. Output: `T.npy`, `B.npy`, `w.npy`, `E.npy`,
-//! `energy_rows.npy` (with the limit on), `bounds.npy`, `c.npy` and `meta.json` (the problem in words)
-//! in a folder. Invariants: every file is written atomically; the arrays are f64, C order.
+//! `energy_rows.npy` (with the limit on), `bounds.npy`, `c.npy` and `meta.json` (the problem in
+//! words) in a folder. Invariants: every file is written atomically; the arrays are f64, C order.
 
 use super::run::FitSettings;
 use super::session::FitOutcome;
@@ -13,14 +13,20 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum DumpError {
     #[error("cannot create {}: {source}", path.display())]
-    Create { path: PathBuf, source: std::io::Error },
+    Create {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error(transparent)]
     Write(#[from] glint_exporters::AtomicWriteError),
 }
 
 /// Writes the problem and solution of `outcome` into `dir` (created if missing).
 pub fn write_qp(dir: &Path, outcome: &FitOutcome, settings: &FitSettings) -> Result<(), DumpError> {
-    std::fs::create_dir_all(dir).map_err(|source| DumpError::Create { path: dir.to_path_buf(), source })?;
+    std::fs::create_dir_all(dir).map_err(|source| DumpError::Create {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let j = outcome.material.centres.len();
     let (mut t, mut b, mut w, mut e) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for v in &outcome.views {
@@ -38,12 +44,25 @@ pub fn write_qp(dir: &Path, outcome: &FitOutcome, settings: &FitSettings) -> Res
     write_f64(&dir.join("B.npy"), &[n, 3], &b)?;
     write_f64(&dir.join("w.npy"), &[n], &w)?;
     write_f64(&dir.join("E.npy"), &[n, 3], &e)?;
-    let rows = outcome.energy.as_ref().map(|table| (table.rows(), table.matrix(settings.f0)));
+    let rows = outcome
+        .energy
+        .as_ref()
+        .map(|table| (table.rows(), table.matrix(settings.f0)));
     if let Some((l, g)) = &rows {
         write_f64(&dir.join("energy_rows.npy"), &[*l, j], g)?;
     }
-    write_f64(&dir.join("bounds.npy"), &[3], &settings.rho_d.map(|r| 1.0 - r))?;
-    let c: Vec<f64> = outcome.material.coefficients.iter().flatten().copied().collect();
+    write_f64(
+        &dir.join("bounds.npy"),
+        &[3],
+        &settings.rho_d.map(|r| 1.0 - r),
+    )?;
+    let c: Vec<f64> = outcome
+        .material
+        .coefficients
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
     write_f64(&dir.join("c.npy"), &[3, j], &c)?;
     let meta = serde_json::json!({
         "problem": "per channel k: minimise sum_i w_i (B[i,k] - rho_d[k]/pi E[i,k] - sum_j T[i,k,j] c[k,j])^2 subject to c[k] >= 0 and energy_rows @ c[k] <= bounds[k] (energy rows absent when the limit is off)",

@@ -2,22 +2,24 @@
 //! squares per colour channel finds the lobe coefficients.
 //!
 //! - [`strokes`]: the stroke file (JSON) and the brush of eq. 23.
-//! - [`problem`]: the weighted normal equations per channel and the per-channel system kept across strokes.
+//! - [`problem`]: the weighted normal equations per channel and the per-channel system kept across
+//!   strokes.
 //! - [`material`]: the lobe table that a fit writes.
-//! - [`session`]: the fitting context (cached lobes, transfers and warm start) the CLI and the app share.
+//! - [`session`]: the fitting context (cached lobes, transfers and warm start) the CLI and the app
+//!   share.
 //! - [`run`]: a whole fit from a bake and a stroke file, in a fresh session.
 //! - [`cost`]: what a fit in one view costs after the bake (`glint bake` reports it).
 //! - [`dump`]: a fit's problem and solution as `.npy` files (`glint fit --dump-qp`).
 //! - [`qp`]: an exact, warm-started dual active-set solver (Goldfarb–Idnani) for
 //!   min ½cᵀHc + qᵀc subject to c ≥ 0 and Gc ≤ u.
 //!
-//! Invariants: no IO except parsing stroke text handed in by the caller and [`dump`]'s files; knows no
-//! wgpu; f64.
+//! Invariants: no IO except parsing stroke text handed in by the caller and [`dump`]'s files; knows
+//! no wgpu; f64.
 
-pub mod material;
-pub mod problem;
 pub mod cost;
 pub mod dump;
+pub mod material;
+pub mod problem;
 pub mod qp;
 pub mod run;
 pub mod session;

@@ -2,15 +2,15 @@
 //!
 //!   minimise Σ_i w_i (B_i − ρd/π·E_i − Σ_j c_j T_ij)²  subject to  c ≥ 0,  Σ_j g_lj c_j ≤ 1 − ρd
 //!
-//! As a QP in c: H = TᵀWT, q = −TᵀW(B − ρd/π·E), constant ½ Σ w (B − ρd/π E)² so the objective is half
-//! the weighted squared residual. Pixels of every view go into one H and q (multi-view fitting). H
-//! does not change while the user paints (T and W do not), so a [`ChannelSystem`] keeps the solver with
-//! H factored and only q changes per stroke.
+//! As a QP in c: H = TᵀWT, q = −TᵀW(B − ρd/π·E), constant ½ Σ w (B − ρd/π E)² so the objective is
+//! half the weighted squared residual. Pixels of every view go into one H and q (multi-view
+//! fitting). H does not change while the user paints (T and W do not), so a [`ChannelSystem`] keeps
+//! the solver with H factored and only q changes per stroke.
 //!
-//! Inputs: transfers (T, E per pixel), targets and weights per pixel, the energy rows for the chosen
-//! F0, ρd per channel, whether the energy rows apply. Outputs: coefficients per channel with residuals
-//! and solver statistics. Invariants: no IO; f64 sums; the energy rows are dropped only when the user
-//! asks (`energy_limit = false`); c ≥ 0 always.
+//! Inputs: transfers (T, E per pixel), targets and weights per pixel, the energy rows for the
+//! chosen F0, ρd per channel, whether the energy rows apply. Outputs: coefficients per channel with
+//! residuals and solver statistics. Invariants: no IO; f64 sums; the energy rows are dropped only
+//! when the user asks (`energy_limit = false`); c ≥ 0 always.
 
 use super::qp::{Constraint, QpError, QpSolver};
 use crate::brdf::EnergyTable;
@@ -29,8 +29,8 @@ pub struct ViewData<'a> {
     pub weight: &'a [f64],
 }
 
-/// Weighted normal equations of one channel: H (J×J, row-major), the right side r = TᵀW(B − ρd/π E),
-/// and the constant Σ w (B − ρd/π E)².
+/// Weighted normal equations of one channel: H (J×J, row-major), the right side r = TᵀW(B − ρd/π
+/// E), and the constant Σ w (B − ρd/π E)².
 #[derive(Debug, Clone)]
 pub struct NormalEquations {
     pub j: usize,
@@ -48,15 +48,18 @@ const GATHER_ROWS: usize = 512;
 
 /// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64.
 ///
-/// A = √W·[T | y] with y = B − ρd/π E (N × (J+1)) is gathered a block of rows at a time and its Gram
-/// matrix AᵀA accumulated by faer's lower-triangular GEMM, sequential: one product gives H (the
-/// leading J×J), r (the last row) and Σ w y² (the corner), and the triangle halves the work. Sequential
-/// so that it is deterministic and safe to call from many threads at once (faer's rayon GEMM called
-/// from concurrent callers thrashed: the fit tests took 317 s instead of 35 s).
+/// A = √W·[T | y] with y = B − ρd/π E (N × (J+1)) is gathered a block of rows at a time and its
+/// Gram matrix AᵀA accumulated by faer's lower-triangular GEMM, sequential: one product gives H
+/// (the leading J×J), r (the last row) and Σ w y² (the corner), and the triangle halves the work.
+/// Sequential so that it is deterministic and safe to call from many threads at once (faer's rayon
+/// GEMM called from concurrent callers thrashed: the fit tests took 317 s instead of 35 s).
 pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> NormalEquations {
     let j = views.first().map_or(0, |v| v.transfer.lobes);
-    let items: Vec<(usize, usize)> =
-        views.iter().enumerate().flat_map(|(vi, v)| (0..v.weight.len().min(v.transfer.pixels.len())).map(move |p| (vi, p))).collect();
+    let items: Vec<(usize, usize)> = views
+        .iter()
+        .enumerate()
+        .flat_map(|(vi, v)| (0..v.weight.len().min(v.transfer.pixels.len())).map(move |p| (vi, p)))
+        .collect();
     let n = items.len();
     let jj = j + 1;
     // Lower triangle of AᵀA over a run of pixels, in fixed blocks of rows.
@@ -89,8 +92,8 @@ pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> Norma
         out
     };
     // Large problems (a full-resolution view) split the pixels into two fixed halves formed side by
-    // side (rayon::join of two sequential products, so no oversubscription) and added: the split does
-    // not depend on the thread count, so neither do the bits.
+    // side (rayon::join of two sequential products, so no oversubscription) and added: the split
+    // does not depend on the thread count, so neither do the bits.
     let g = if n * j * j >= GRAM_SPLIT_FLOPS && n >= 2 {
         let (top, bottom) = items.split_at(n / 2);
         let (mut x, y) = rayon::join(|| gram(top), || gram(bottom));
@@ -111,8 +114,18 @@ pub fn normal_equations(views: &[ViewData], channel: usize, rho_d: f64) -> Norma
         }
     }
     let r = (0..j).map(|k| g[(j, k)]).collect();
-    let weight_sum = items.iter().map(|&(vi, p)| views[vi].weight[p].max(0.0)).sum();
-    NormalEquations { j, h, r, constant: g[(j, j)], weight_sum, pixels: n }
+    let weight_sum = items
+        .iter()
+        .map(|&(vi, p)| views[vi].weight[p].max(0.0))
+        .sum();
+    NormalEquations {
+        j,
+        h,
+        r,
+        constant: g[(j, j)],
+        weight_sum,
+        pixels: n,
+    }
 }
 
 /// The per-channel system with its solver, kept across strokes (H fixed, q changing).
@@ -138,17 +151,30 @@ pub struct ChannelFit {
 
 impl ChannelSystem {
     /// Factors H and sets up the constraints: c ≥ 0 and, with `energy`, G c ≤ 1 − ρd.
-    pub fn new(equations: NormalEquations, energy: Option<(&EnergyTable, f64)>, rho_d: f64) -> Result<Self, QpError> {
+    pub fn new(
+        equations: NormalEquations,
+        energy: Option<(&EnergyTable, f64)>,
+        rho_d: f64,
+    ) -> Result<Self, QpError> {
         let j = equations.j;
         let (g, u, m, bound) = match energy {
             Some((table, f0)) => {
                 let u = (1.0 - rho_d).max(0.0);
-                (table.matrix(f0), vec![u; table.rows()], table.rows(), Some(u))
+                (
+                    table.matrix(f0),
+                    vec![u; table.rows()],
+                    table.rows(),
+                    Some(u),
+                )
             }
             None => (Vec::new(), Vec::new(), 0, None),
         };
         let solver = QpSolver::new(&equations.h, j, &g, &u, m)?;
-        Ok(Self { equations, solver, bound })
+        Ok(Self {
+            equations,
+            solver,
+            bound,
+        })
     }
 
     /// Solves with the current right side (warm-started from `warm` when given).
@@ -157,12 +183,17 @@ impl ChannelSystem {
         let q: Vec<f64> = self.equations.r.iter().map(|x| -x).collect();
         let sol = self.solver.solve(&q, warm)?;
         let seconds = start.elapsed().as_secs_f64();
-        // ½‖√W(y − Tc)‖² = ½cᵀHc − rᵀc + ½ yᵀy; the objective the solver reports omits the constant.
+        // ½‖√W(y − Tc)‖² = ½cᵀHc − rᵀc + ½ yᵀy; the objective the solver reports omits the
+        // constant.
         let sq = (2.0 * sol.objective + self.equations.constant).max(0.0);
         let residual_rms = (sq / self.equations.weight_sum.max(f64::MIN_POSITIVE)).sqrt();
         Ok(ChannelFit {
             residual_rms,
-            active_energy_rows: sol.active.iter().filter(|c| matches!(c, Constraint::Row(_))).count(),
+            active_energy_rows: sol
+                .active
+                .iter()
+                .filter(|c| matches!(c, Constraint::Row(_)))
+                .count(),
             active: sol.active,
             iterations: sol.iterations,
             seconds,
@@ -171,19 +202,23 @@ impl ChannelSystem {
     }
 }
 
-/// Solves the three channels cold: red from scratch, green and blue warm-started from red's active set
-/// (the channels differ only in the light's colour, so their active sets are alike). See
+/// Solves the three channels cold: red from scratch, green and blue warm-started from red's active
+/// set (the channels differ only in the light's colour, so their active sets are alike). See
 /// [`solve_rgb_from`].
-pub fn solve_rgb(views: &[ViewData], energy: Option<(&EnergyTable, f64)>, rho_d: [f64; 3]) -> Result<Vec<ChannelFit>, QpError> {
+pub fn solve_rgb(
+    views: &[ViewData],
+    energy: Option<(&EnergyTable, f64)>,
+    rho_d: [f64; 3],
+) -> Result<Vec<ChannelFit>, QpError> {
     solve_rgb_from(views, energy, rho_d, None).map(Vec::from)
 }
 
-/// Solves the three channels, each warm-started from `warm[c]` (the previous fit's active sets) when
-/// given; otherwise red cold and green and blue from red's active set. The result is the same as three
-/// cold solves (the solver is exact from any start); only the time differs.
+/// Solves the three channels, each warm-started from `warm[c]` (the previous fit's active sets)
+/// when given; otherwise red cold and green and blue from red's active set. The result is the same
+/// as three cold solves (the solver is exact from any start); only the time differs.
 ///
-/// Parallel (rayon) but deterministic: each channel's H is formed and its QP solved sequentially, so
-/// the bits do not depend on the schedule. Without `warm`, red's H and cold solve run beside the
+/// Parallel (rayon) but deterministic: each channel's H is formed and its QP solved sequentially,
+/// so the bits do not depend on the schedule. Without `warm`, red's H and cold solve run beside the
 /// forming of green's and blue's H; green and blue are then solved side by side.
 pub fn solve_rgb_from(
     views: &[ViewData],
@@ -191,7 +226,8 @@ pub fn solve_rgb_from(
     rho_d: [f64; 3],
     warm: Option<&[Vec<Constraint>; 3]>,
 ) -> Result<[ChannelFit; 3], QpError> {
-    let system = |c: usize| ChannelSystem::new(normal_equations(views, c, rho_d[c]), energy, rho_d[c]);
+    let system =
+        |c: usize| ChannelSystem::new(normal_equations(views, c, rho_d[c]), energy, rho_d[c]);
     match warm {
         Some(warm) => {
             let solve = |c: usize| system(c)?.solve(Some(&warm[c]));
@@ -199,7 +235,10 @@ pub fn solve_rgb_from(
             Ok([r?, g?, b?])
         }
         None => {
-            let (r, (g, b)) = rayon::join(|| system(0)?.solve(None), || rayon::join(|| system(1), || system(2)));
+            let (r, (g, b)) = rayon::join(
+                || system(0)?.solve(None),
+                || rayon::join(|| system(1), || system(2)),
+            );
             let (r, g, b) = (r?, g?, b?);
             let (g, b) = rayon::join(|| g.solve(Some(&r.active)), || b.solve(Some(&r.active)));
             Ok([r, g?, b?])
@@ -220,7 +259,14 @@ mod tests {
             s ^= s << 17;
             (s % 1_000_003) as f64 / 1_000_003.0
         };
-        let pixel = PixelSample { x: 0, y: 0, triangle: 0, bary: [1.0, 0.0, 0.0], position: glam::Vec3::ZERO, normal: glam::Vec3::Z };
+        let pixel = PixelSample {
+            x: 0,
+            y: 0,
+            triangle: 0,
+            bary: [1.0, 0.0, 0.0],
+            position: glam::Vec3::ZERO,
+            normal: glam::Vec3::Z,
+        };
         Transfer {
             width: 1,
             height: 1,
@@ -232,18 +278,37 @@ mod tests {
         }
     }
 
-    /// H, r and the constant against the plain f64 sums over pixels, for two views whose pixel count
-    /// is no multiple of the gather block and large enough (N·J² ≥ GRAM_SPLIT_FLOPS) that the product
-    /// is formed as two halves; negative weights count as 0.
+    /// H, r and the constant against the plain f64 sums over pixels, for two views whose pixel
+    /// count is no multiple of the gather block and large enough (N·J² ≥ GRAM_SPLIT_FLOPS) that the
+    /// product is formed as two halves; negative weights count as 0.
     #[test]
     fn normal_equations_equal_the_direct_sums() {
         let j = 147;
         let sizes = [5000, GRAM_SPLIT_FLOPS / (j * j) - 5000 + 777];
-        let transfers: Vec<Transfer> = sizes.iter().zip([3u64, 17]).map(|(&n, s)| transfer(n, j, s)).collect();
-        let targets: Vec<Vec<[f64; 3]>> = sizes.iter().map(|&n| (0..n).map(|i| [0.3 + (i % 7) as f64 * 0.1, 0.2, -0.1]).collect()).collect();
-        let weights: Vec<Vec<f64>> = sizes.iter().map(|&n| (0..n).map(|i| [1.0, 0.1, -0.5, 0.0][i % 4]).collect()).collect();
-        let views: Vec<ViewData> =
-            (0..2).map(|v| ViewData { transfer: &transfers[v], target: &targets[v], weight: &weights[v] }).collect();
+        let transfers: Vec<Transfer> = sizes
+            .iter()
+            .zip([3u64, 17])
+            .map(|(&n, s)| transfer(n, j, s))
+            .collect();
+        let targets: Vec<Vec<[f64; 3]>> = sizes
+            .iter()
+            .map(|&n| {
+                (0..n)
+                    .map(|i| [0.3 + (i % 7) as f64 * 0.1, 0.2, -0.1])
+                    .collect()
+            })
+            .collect();
+        let weights: Vec<Vec<f64>> = sizes
+            .iter()
+            .map(|&n| (0..n).map(|i| [1.0, 0.1, -0.5, 0.0][i % 4]).collect())
+            .collect();
+        let views: Vec<ViewData> = (0..2)
+            .map(|v| ViewData {
+                transfer: &transfers[v],
+                target: &targets[v],
+                weight: &weights[v],
+            })
+            .collect();
         assert!(sizes.iter().sum::<usize>() * j * j >= GRAM_SPLIT_FLOPS);
         for channel in 0..3 {
             let rho_d = 0.4;
@@ -255,7 +320,8 @@ mod tests {
                 for p in 0..v.weight.len() {
                     let w = v.weight[p].max(0.0);
                     let t = v.transfer.t_row(p, channel);
-                    let y = v.target[p][channel] - rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
+                    let y = v.target[p][channel]
+                        - rho_d / std::f64::consts::PI * v.transfer.irradiance[p][channel];
                     for a in 0..j {
                         r[a] += w * t[a] as f64 * y;
                         for b in 0..j {
@@ -275,7 +341,11 @@ mod tests {
             for k in 0..j {
                 assert!(close(eq.r[k], r[k]), "r[{k}]: {} vs {}", eq.r[k], r[k]);
             }
-            assert!(close(eq.constant, constant), "{} vs {constant}", eq.constant);
+            assert!(
+                close(eq.constant, constant),
+                "{} vs {constant}",
+                eq.constant
+            );
             assert!(close(eq.weight_sum, weight_sum));
         }
     }

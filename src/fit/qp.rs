@@ -345,26 +345,40 @@ impl QpSolver {
     }
 
     /// Solves for `q` by plain Goldfarb–Idnani from the unconstrained minimiser, adding constraints
-    /// one at a time (no seed, no block start): the textbook path, kept as a second route to the same
-    /// answer for tests and to measure what the seeded start saves.
+    /// one at a time (no seed, no block start): the textbook path, kept as a second route to the
+    /// same answer for tests and to measure what the seeded start saves.
     pub fn solve_unseeded(&self, q: &[f64]) -> Result<QpSolution, QpError> {
         self.check_q(q)?;
-        let mut w = Work::new(self, q, self.j0.clone(), vec![0.0; self.n * self.n], Vec::new());
+        let mut w = Work::new(
+            self,
+            q,
+            self.j0.clone(),
+            vec![0.0; self.n * self.n],
+            Vec::new(),
+        );
         w.settle()?;
         w.run()?;
         Ok(w.finish())
     }
 
     /// A working state with the constraints `ids` imposed as equalities: the bounds among them in
-    /// one block ([`QpSolver::bound_factor`]: one Cholesky of the reordered H + δI, O(n³/3), instead
-    /// of O(n²) Givens rotations per bound), then the energy rows one by one. Falls back to rotations
-    /// for everything if the reordered factorisation fails (rounding at the edge of δ).
+    /// one block ([`QpSolver::bound_factor`]: one Cholesky of the reordered H + δI, O(n³/3),
+    /// instead of O(n²) Givens rotations per bound), then the energy rows one by one. Falls back to
+    /// rotations for everything if the reordered factorisation fails (rounding at the edge of δ).
     fn block_start<'s>(&'s self, q: &'s [f64], ids: &[usize]) -> Work<'s> {
         let n = self.n;
         let mut seen = vec![false; n];
-        let bounds: Vec<usize> = ids.iter().copied().filter(|&k| k < n && !std::mem::replace(&mut seen[k], true)).collect();
+        let bounds: Vec<usize> = ids
+            .iter()
+            .copied()
+            .filter(|&k| k < n && !std::mem::replace(&mut seen[k], true))
+            .collect();
         let rows: Vec<usize> = ids.iter().copied().filter(|&k| k >= n).collect();
-        let factor = if bounds.is_empty() { None } else { self.bound_factor(&bounds) };
+        let factor = if bounds.is_empty() {
+            None
+        } else {
+            self.bound_factor(&bounds)
+        };
         let mut w = match factor {
             Some((j, r)) => Work::new(self, q, j, r, bounds),
             None => {
@@ -393,7 +407,11 @@ impl QpSolver {
             in_bounds[k] = true;
         }
         // σ = reverse(bounds ++ free): the free variables (descending), then the bounds reversed.
-        let sigma: Vec<usize> = (0..n).rev().filter(|&k| !in_bounds[k]).chain(bounds.iter().rev().copied()).collect();
+        let sigma: Vec<usize> = (0..n)
+            .rev()
+            .filter(|&k| !in_bounds[k])
+            .chain(bounds.iter().rev().copied())
+            .collect();
         let mut pos = vec![0usize; n];
         for (i, &k) in sigma.iter().enumerate() {
             pos[k] = i;
@@ -421,19 +439,25 @@ impl QpSolver {
                 r[c * n + i] = linv[(n - 1 - i) * n + (n - 1 - c)];
             }
         }
-        if j.iter().chain(&r[..qa * n]).all(|v| v.is_finite()) { Some((j, r)) } else { None }
+        if j.iter().chain(&r[..qa * n]).all(|v| v.is_finite()) {
+            Some((j, r))
+        } else {
+            None
+        }
     }
 
     /// A guess of the bounds active at the minimiser, for a cold start: the primal–dual active-set
     /// iteration (Hintermüller, Ito & Kunisch 2002) on the bound constraints alone (the energy rows
     /// are left to GI). From the unconstrained minimiser, A = {j : x_j < 0}; then repeatedly solve
-    /// (H + δI)_FF x_F = −q_F with x_A = 0, take the multipliers λ_A = (Hx + q)_A, and move to
-    /// A' = {j ∈ F : x_j < 0} ∪ {j ∈ A : λ_j > 0}, until A repeats or [`SEED_ITERATIONS`] pass.
-    /// Each step is one Cholesky of the free block. Only a guess: GI from it is exact whatever it is.
+    /// (H + δI)_FF x_F = −q_F with x_A = 0, take the multipliers λ_A = (Hx + q)_A, and move to A' =
+    /// {j ∈ F : x_j < 0} ∪ {j ∈ A : λ_j > 0}, until A repeats or [`SEED_ITERATIONS`] pass. Each
+    /// step is one Cholesky of the free block. Only a guess: GI from it is exact whatever it is.
     fn seed_bounds(&self, q: &[f64]) -> Vec<usize> {
         let n = self.n;
         // x = −(H + δI)⁻¹q = −J₀J₀ᵀq.
-        let y: Vec<f64> = (0..n).map(|c| dot(&self.j0[c * n..(c + 1) * n], q)).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|c| dot(&self.j0[c * n..(c + 1) * n], q))
+            .collect();
         let mut x = vec![0.0; n];
         for (c, &yc) in y.iter().enumerate() {
             axpy(-yc, &self.j0[c * n..(c + 1) * n], &mut x);
@@ -448,7 +472,9 @@ impl QpSolver {
                     hff[a * nf + b] = self.h[fa * n + fb];
                 }
             }
-            let Some(l) = cholesky(&hff, nf, self.delta) else { break };
+            let Some(l) = cholesky(&hff, nf, self.delta) else {
+                break;
+            };
             // Forward and back substitution: L Lᵀ x_F = −q_F.
             let mut v: Vec<f64> = free.iter().map(|&k| -q[k]).collect();
             for i in 0..nf {
@@ -461,7 +487,13 @@ impl QpSolver {
                 x[k] = vk;
             }
             let next: Vec<bool> = (0..n)
-                .map(|k| if active[k] { dot(&self.h[k * n..(k + 1) * n], &x) + q[k] > 0.0 } else { x[k] < 0.0 })
+                .map(|k| {
+                    if active[k] {
+                        dot(&self.h[k * n..(k + 1) * n], &x) + q[k] > 0.0
+                    } else {
+                        x[k] < 0.0
+                    }
+                })
                 .collect();
             if next == active {
                 break;
@@ -1247,8 +1279,12 @@ mod tests {
 
     /// H = Hilbert matrix + diag·I (n×n) and two positive energy rows.
     fn hilbert_problem(n: usize, diag: f64) -> (Vec<f64>, Vec<f64>) {
-        let h = (0..n * n).map(|k| 1.0 / (1 + k / n + k % n) as f64 + if k / n == k % n { diag } else { 0.0 }).collect();
-        let g = (0..2 * n).map(|k| ((k * 7) % 5) as f64 * 0.3 + 0.1).collect();
+        let h = (0..n * n)
+            .map(|k| 1.0 / (1 + k / n + k % n) as f64 + if k / n == k % n { diag } else { 0.0 })
+            .collect();
+        let g = (0..2 * n)
+            .map(|k| ((k * 7) % 5) as f64 * 0.3 + 0.1)
+            .collect();
         (h, g)
     }
 
@@ -1256,9 +1292,14 @@ mod tests {
     fn assert_jthj_is_identity(h: &[f64], n: usize, w: &Work) {
         for a in 0..n {
             for b in 0..n {
-                let hj: Vec<f64> = (0..n).map(|i| dot(&h[i * n..(i + 1) * n], w.col(b))).collect();
+                let hj: Vec<f64> = (0..n)
+                    .map(|i| dot(&h[i * n..(i + 1) * n], w.col(b)))
+                    .collect();
                 let v = dot(w.col(a), &hj);
-                assert!((v - f64::from(u8::from(a == b))).abs() < 1e-10, "JᵀHJ[{a},{b}] = {v}");
+                assert!(
+                    (v - f64::from(u8::from(a == b))).abs() < 1e-10,
+                    "JᵀHJ[{a},{b}] = {v}"
+                );
             }
         }
     }
@@ -1307,8 +1348,8 @@ mod tests {
 
     #[test]
     fn block_start_keeps_the_invariants_and_equals_rotations() {
-        // The bounds imposed in one reordered Cholesky: JᵀHJ = I (H + δI, δ tiny here), JᵀN = [R; 0]
-        // with R upper triangular, rows added after by rotations; and x, the multipliers from it
+        // The bounds imposed in one reordered Cholesky: JᵀHJ = I (H + δI, δ tiny here), JᵀN = [R;
+        // 0] with R upper triangular, rows added after by rotations; and x, the multipliers from it
         // equal those of the rotation path.
         let n = 7;
         let (h, g) = hilbert_problem(n, 0.5);
@@ -1323,7 +1364,11 @@ mod tests {
             w.jt_normal(k);
             for c in 0..n {
                 let expect = if c <= pos { w.r[pos * n + c] } else { 0.0 };
-                assert!((w.d[c] - expect).abs() < 1e-10, "JᵀN[{c},{pos}] = {} vs {expect}", w.d[c]);
+                assert!(
+                    (w.d[c] - expect).abs() < 1e-10,
+                    "JᵀN[{c},{pos}] = {} vs {expect}",
+                    w.d[c]
+                );
             }
             assert!(w.r[pos * n + pos] > 0.0);
         }
@@ -1369,10 +1414,17 @@ mod tests {
             let warm = solver.solve(&q, Some(&wrong)).unwrap();
             let scale = 1.0 + plain.c.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             for other in [&seeded, &warm] {
-                let d = other.c.iter().zip(&plain.c).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+                let d = other
+                    .c
+                    .iter()
+                    .zip(&plain.c)
+                    .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
                 assert!(d <= 1e-8 * scale, "case {case}: differ by {d}");
                 let k = kkt_residuals(&problem(&h, &q, &g, &u, n), other);
-                assert!(k.primal_infeasibility <= 1e-9 && k.dual_infeasibility == 0.0, "case {case}: {k:?}");
+                assert!(
+                    k.primal_infeasibility <= 1e-9 && k.dual_infeasibility == 0.0,
+                    "case {case}: {k:?}"
+                );
             }
         }
     }

@@ -2,12 +2,12 @@
 //! solves → a [`Material`](super::material::Material), in a fresh [`FitSession`].
 //!
 //! Inputs: a [`Baked`] scene (from a [`LoadedBake`] or built in memory), parsed strokes,
-//! [`FitSettings`]. Output: the material and what was fitted (for `--dump-qp`). No IO (the CLI reads
-//! and writes). Invariants: those of [`FitSession::fit`].
+//! [`FitSettings`]. Output: the material and what was fitted (for `--dump-qp`). No IO (the CLI
+//! reads and writes). Invariants: those of [`FitSession::fit`].
 
 use super::qp::QpError;
-pub use super::session::{FitOutcome, FittedView};
 use super::session::{FitInputs, FitSession};
+pub use super::session::{FitOutcome, FittedView};
 use super::strokes::{ViewSpec, ViewStrokes};
 use crate::bake::{Cuts, LoadedBake};
 use crate::env::EnvMap;
@@ -24,7 +24,8 @@ pub struct FitSettings {
     pub f0: f64,
     /// Energy rows on (the physical default) or off (a physically impossible BRDF on purpose).
     pub energy_limit: bool,
-    /// Lobe layout; `None`: the paper's hemicube where the scene has a tangent field, else 24 rings.
+    /// Lobe layout; `None`: the paper's hemicube where the scene has a tangent field, else 24
+    /// rings.
     pub layout: Option<LobeLayout>,
     pub sigma: f64,
     /// Fit resolution; `None`: a quarter of each view's image size.
@@ -35,7 +36,15 @@ pub struct FitSettings {
 
 impl Default for FitSettings {
     fn default() -> Self {
-        Self { rho_d: [0.5; 3], f0: 0.04, energy_limit: true, layout: None, sigma: srbf::PAPER_SIGMA, fit_size: None, rotation_rad: 0.0 }
+        Self {
+            rho_d: [0.5; 3],
+            f0: 0.04,
+            energy_limit: true,
+            layout: None,
+            sigma: srbf::PAPER_SIGMA,
+            fit_size: None,
+            rotation_rad: 0.0,
+        }
     }
 }
 
@@ -53,12 +62,47 @@ pub enum FitError {
 }
 
 /// The camera a stroke view names, sized to the stroke file's image.
-pub fn camera_for(scene: &Scene, view: &ViewSpec, image_size: [u32; 2]) -> Result<Camera, FitError> {
-    let names = || scene.cameras.iter().map(|c| c.name.clone()).collect::<Vec<_>>().join(", ");
+pub fn camera_for(
+    scene: &Scene,
+    view: &ViewSpec,
+    image_size: [u32; 2],
+) -> Result<Camera, FitError> {
+    let names = || {
+        scene
+            .cameras
+            .iter()
+            .map(|c| c.name.clone())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     let mut camera = match view {
-        ViewSpec::Name(n) => scene.cameras.iter().find(|c| &c.name == n).cloned().ok_or_else(|| FitError::UnknownView { view: format!("'{n}'"), available: names() })?,
-        ViewSpec::Index(i) => scene.cameras.get(*i).cloned().ok_or_else(|| FitError::UnknownView { view: format!("#{i}"), available: names() })?,
-        ViewSpec::Orbit { orbit } => orbit_camera(&scene.bounds, orbit[0], orbit[1], orbit[2], image_size[0], image_size[1]),
+        ViewSpec::Name(n) => scene
+            .cameras
+            .iter()
+            .find(|c| &c.name == n)
+            .cloned()
+            .ok_or_else(|| FitError::UnknownView {
+                view: format!("'{n}'"),
+                available: names(),
+            })?,
+        ViewSpec::Index(i) => {
+            scene
+                .cameras
+                .get(*i)
+                .cloned()
+                .ok_or_else(|| FitError::UnknownView {
+                    view: format!("#{i}"),
+                    available: names(),
+                })?
+        }
+        ViewSpec::Orbit { orbit } => orbit_camera(
+            &scene.bounds,
+            orbit[0],
+            orbit[1],
+            orbit[2],
+            image_size[0],
+            image_size[1],
+        ),
     };
     camera.width = image_size[0];
     camera.height = image_size[1];
@@ -68,7 +112,11 @@ pub fn camera_for(scene: &Scene, view: &ViewSpec, image_size: [u32; 2]) -> Resul
 
 /// The default lobe layout for a scene with or without a tangent field.
 pub fn default_layout(anisotropic: bool) -> LobeLayout {
-    if anisotropic { LobeLayout::PAPER } else { LobeLayout::Isotropic { count: 24 } }
+    if anisotropic {
+        LobeLayout::PAPER
+    } else {
+        LobeLayout::Isotropic { count: 24 }
+    }
 }
 
 /// A bake as a one-shot fit reads it: the scene (its mesh is the one the cuts belong to), the
@@ -99,7 +147,11 @@ impl<'a> From<&'a LoadedBake> for Baked<'a> {
 
 /// Runs one fit in a fresh [`FitSession`]: the light sums at the settings' rotation, each view's
 /// transfer, one solve per channel.
-pub fn fit(baked: &Baked, strokes: &[ViewStrokes], settings: &FitSettings) -> Result<FitOutcome, FitError> {
+pub fn fit(
+    baked: &Baked,
+    strokes: &[ViewStrokes],
+    settings: &FitSettings,
+) -> Result<FitOutcome, FitError> {
     let set = DirectionSet::cube(baked.resolution)?;
     let tree = LightTree::build(&set);
     let light = LightSums::new(baked.env, &set, &tree, settings.rotation_rad);

@@ -1,21 +1,20 @@
 //! Strokes: the stroke file and the brush of eq. 23 (method.md §6).
 //!
-//! File (JSON; schema in `src/fit/strokes.schema.json`): one object, or a list of them (one per view;
-//! multi-view fitting puts all their pixels into one solve):
-//! `{"view": <camera name | camera index | {"orbit": [az°, el°, dist]}>, "image_size": [w, h],
+//! File (JSON; schema in `src/fit/strokes.schema.json`): one object, or a list of them (one per
+//! view; multi-view fitting puts all their pixels into one solve): `{"view": <camera name | camera
+//! index | {"orbit": [az°, el°, dist]}>, "image_size": [w, h],
 //!   "keep_weight": 0.1, "strokes": [{"points": [[x, y], ...], "mode": "paint" | "scale" | "erase",
 //!   "color": [r, g, b], "scale": S, "radius": D, "kappa": κ}]}`.
 //! Points are pixels of the full-resolution view (`image_size`), origin top-left; `color` is linear
 //! radiance and may be negative (it then removes a highlight).
 //!
-//! Brush: for a pixel at distance d (full-resolution pixels) from the stroke's polyline,
-//! w = exp(−κ d) if d ≤ D else 0, and the target becomes B = w C + (1 − w) B' (paint),
-//! B = w S B' + (1 − w) B' (scale) or B = w D + (1 − w) B' (erase: D is the diffuse rendering, so an
-//! erase stroke removes a highlight painted by an earlier stroke too), B' the value before the stroke;
-//! strokes apply in file order.
-//! The least-squares weight of a pixel is keep_weight + (1 − keep_weight) · max over strokes of w: painted
-//! pixels count fully, unpainted ones keep their current value with the user's keep weight (the paper's
-//! remedy for unpainted regions changing).
+//! Brush: for a pixel at distance d (full-resolution pixels) from the stroke's polyline, w = exp(−κ
+//! d) if d ≤ D else 0, and the target becomes B = w C + (1 − w) B' (paint), B = w S B' + (1 − w) B'
+//! (scale) or B = w D + (1 − w) B' (erase: D is the diffuse rendering, so an erase stroke removes a
+//! highlight painted by an earlier stroke too), B' the value before the stroke; strokes apply in
+//! file order. The least-squares weight of a pixel is keep_weight + (1 − keep_weight) · max over
+//! strokes of w: painted pixels count fully, unpainted ones keep their current value with the
+//! user's keep weight (the paper's remedy for unpainted regions changing).
 //!
 //! Inputs: stroke text, fit-pixel positions, current radiance. Outputs: targets and weights.
 //! Invariants: no IO (the caller reads the file); every number is validated finite; no panics.
@@ -99,20 +98,28 @@ enum OneOrMany {
 /// Parses and validates a stroke file.
 pub fn parse(text: &str) -> Result<Vec<ViewStrokes>, StrokeError> {
     // Parse once as a generic value for a precise error, then as our types.
-    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| StrokeError::Json(e.to_string()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| StrokeError::Json(e.to_string()))?;
     let views = match serde_json::from_value::<OneOrMany>(value.clone()) {
         Ok(OneOrMany::Many(v)) => v,
         Ok(OneOrMany::One(v)) => vec![v],
         Err(_) => {
             // Re-run the single-object parse to get serde's message for the common case.
             let err = match &value {
-                serde_json::Value::Array(items) => items
-                    .iter()
-                    .enumerate()
-                    .find_map(|(i, item)| serde_json::from_value::<ViewStrokes>(item.clone()).err().map(|e| format!("view {i}: {e}"))),
-                _ => serde_json::from_value::<ViewStrokes>(value.clone()).err().map(|e| e.to_string()),
+                serde_json::Value::Array(items) => {
+                    items.iter().enumerate().find_map(|(i, item)| {
+                        serde_json::from_value::<ViewStrokes>(item.clone())
+                            .err()
+                            .map(|e| format!("view {i}: {e}"))
+                    })
+                }
+                _ => serde_json::from_value::<ViewStrokes>(value.clone())
+                    .err()
+                    .map(|e| e.to_string()),
             };
-            return Err(StrokeError::Json(err.unwrap_or_else(|| "unrecognised structure".into())));
+            return Err(StrokeError::Json(
+                err.unwrap_or_else(|| "unrecognised structure".into()),
+            ));
         }
     };
     for (i, v) in views.iter().enumerate() {
@@ -127,12 +134,16 @@ fn validate(v: &ViewStrokes) -> Result<(), String> {
         return Err(format!("image_size {w}x{h} is outside 1..16384"));
     }
     if !(v.keep_weight.is_finite() && v.keep_weight >= 0.0) {
-        return Err(format!("keep_weight {} must be finite and >= 0", v.keep_weight));
+        return Err(format!(
+            "keep_weight {} must be finite and >= 0",
+            v.keep_weight
+        ));
     }
     if let ViewSpec::Orbit { orbit } = &v.view
-        && orbit.iter().any(|x| !x.is_finite()) {
-            return Err("orbit values must be finite".into());
-        }
+        && orbit.iter().any(|x| !x.is_finite())
+    {
+        return Err("orbit values must be finite".into());
+    }
     for (k, s) in v.strokes.iter().enumerate() {
         let bad = |m: String| Err(format!("stroke {k}: {m}"));
         if s.points.is_empty() {
@@ -158,7 +169,11 @@ fn validate(v: &ViewStrokes) -> Result<(), String> {
 pub fn segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let (cx, cy) = (a[0] + t * dx, a[1] + t * dy);
     ((p[0] - cx).powi(2) + (p[1] - cy).powi(2)).sqrt()
 }
@@ -168,7 +183,10 @@ pub fn polyline_distance(p: [f64; 2], points: &[[f64; 2]]) -> f64 {
     match points {
         [] => f64::INFINITY,
         [a] => segment_distance(p, *a, *a),
-        _ => points.windows(2).map(|w| segment_distance(p, w[0], w[1])).fold(f64::INFINITY, f64::min),
+        _ => points
+            .windows(2)
+            .map(|w| segment_distance(p, w[0], w[1]))
+            .fold(f64::INFINITY, f64::min),
     }
 }
 
@@ -176,7 +194,11 @@ impl Stroke {
     /// The brush weight w at full-resolution pixel position p (eq. 23).
     pub fn weight(&self, p: [f64; 2]) -> f64 {
         let d = polyline_distance(p, &self.points);
-        if d <= self.radius { (-self.kappa * d).exp() } else { 0.0 }
+        if d <= self.radius {
+            (-self.kappa * d).exp()
+        } else {
+            0.0
+        }
     }
 
     /// Applies the stroke to the value before it, B', at weight w; `diffuse` is the pixel's diffuse
@@ -203,10 +225,15 @@ pub struct Targets {
     pub off_object: Vec<usize>,
 }
 
-/// Targets for `pixels` (fit-resolution pixel coordinates, of a fit image of `fit_size`) whose current
-/// radiance is `current` (the diffuse rendering, c = 0: what strokes paint over and erase returns to),
-/// under the strokes of `view`.
-pub fn targets(view: &ViewStrokes, pixels: &[(u32, u32)], fit_size: (u32, u32), current: &[[f64; 3]]) -> Targets {
+/// Targets for `pixels` (fit-resolution pixel coordinates, of a fit image of `fit_size`) whose
+/// current radiance is `current` (the diffuse rendering, c = 0: what strokes paint over and erase
+/// returns to), under the strokes of `view`.
+pub fn targets(
+    view: &ViewStrokes,
+    pixels: &[(u32, u32)],
+    fit_size: (u32, u32),
+    current: &[[f64; 3]],
+) -> Targets {
     let sx = view.image_size[0] as f64 / fit_size.0.max(1) as f64;
     let sy = view.image_size[1] as f64 / fit_size.1.max(1) as f64;
     let mut target: Vec<[f64; 3]> = current.to_vec();
@@ -229,7 +256,12 @@ pub fn targets(view: &ViewStrokes, pixels: &[(u32, u32)], fit_size: (u32, u32), 
     Targets {
         weight: max_w.iter().map(|w| keep + (1.0 - keep) * w).collect(),
         touched: max_w.iter().filter(|w| **w > 0.0).count(),
-        off_object: hits.iter().enumerate().filter(|(_, h)| **h == 0).map(|(k, _)| k).collect(),
+        off_object: hits
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| **h == 0)
+            .map(|(k, _)| k)
+            .collect(),
         target,
     }
 }
@@ -247,23 +279,41 @@ mod tests {
         assert_eq!(v.len(), 1);
         assert_eq!(v[0].keep_weight, 0.1);
         assert_eq!(v[0].view, ViewSpec::Name("default".into()));
-        let many = format!("[{ONE}, {}]", ONE.replace("\"default\"", "{\"orbit\": [30, 20, 0]}").replace("\"paint\"", "\"scale\""));
+        let many = format!(
+            "[{ONE}, {}]",
+            ONE.replace("\"default\"", "{\"orbit\": [30, 20, 0]}")
+                .replace("\"paint\"", "\"scale\"")
+        );
         let v = parse(&many).unwrap();
         assert_eq!(v.len(), 2);
-        assert_eq!(v[1].view, ViewSpec::Orbit { orbit: [30.0, 20.0, 0.0] });
+        assert_eq!(
+            v[1].view,
+            ViewSpec::Orbit {
+                orbit: [30.0, 20.0, 0.0]
+            }
+        );
         assert_eq!(v[1].strokes[0].mode, Mode::Scale);
-        assert_eq!(parse(&ONE.replace("\"default\"", "2")).unwrap()[0].view, ViewSpec::Index(2));
+        assert_eq!(
+            parse(&ONE.replace("\"default\"", "2")).unwrap()[0].view,
+            ViewSpec::Index(2)
+        );
     }
 
     #[test]
     fn malformed_files_give_one_line_errors() {
         for (bad, needle) in [
             ("{", "JSON"),
-            (r#"{"view": "a", "image_size": [0, 10], "strokes": []}"#, "image_size"),
+            (
+                r#"{"view": "a", "image_size": [0, 10], "strokes": []}"#,
+                "image_size",
+            ),
             (&ONE.replace("\"radius\": 10", "\"radius\": -1"), "radius"),
             (&ONE.replace("\"paint\"", "\"smudge\""), "JSON"),
             (&ONE.replace("[[100, 100], [200, 100]]", "[]"), "no points"),
-            (&ONE.replace("\"kappa\": 0.1", "\"kappa\": 0.1, \"extra\": 1"), "JSON"),
+            (
+                &ONE.replace("\"kappa\": 0.1", "\"kappa\": 0.1, \"extra\": 1"),
+                "JSON",
+            ),
         ] {
             let e = parse(bad).unwrap_err().to_string();
             assert!(e.contains(needle) && !e.contains('\n'), "{e}");
@@ -274,7 +324,10 @@ mod tests {
     fn brush_follows_eq_23() {
         let s = &parse(ONE).unwrap()[0].strokes[0];
         // On the segment: d = 0, w = 1, B = C.
-        assert_eq!(s.apply(s.weight([150.0, 100.0]), [0.5; 3], [0.5; 3]), [2.0; 3]);
+        assert_eq!(
+            s.apply(s.weight([150.0, 100.0]), [0.5; 3], [0.5; 3]),
+            [2.0; 3]
+        );
         // 5 px away: w = exp(-0.5).
         let w = s.weight([150.0, 105.0]);
         assert!((w - (-0.5f64).exp()).abs() < 1e-15);
@@ -287,7 +340,10 @@ mod tests {
         let mut sc = s.clone();
         sc.mode = Mode::Scale;
         sc.scale = 3.0;
-        assert_eq!(sc.apply(1.0, [0.5, 1.0, 0.0], [0.5, 1.0, 0.0]), [1.5, 3.0, 0.0]);
+        assert_eq!(
+            sc.apply(1.0, [0.5, 1.0, 0.0], [0.5, 1.0, 0.0]),
+            [1.5, 3.0, 0.0]
+        );
         // Negative colour removes a highlight (the target goes below the current value).
         let mut neg = s.clone();
         neg.color = [-1.0; 3];
@@ -296,15 +352,17 @@ mod tests {
 
     #[test]
     fn erase_returns_to_the_diffuse_rendering_even_over_an_earlier_highlight() {
-        // A paint stroke, then an erase stroke over the same segment: at full weight the target is the
-        // diffuse value again (a scale stroke with S = 1 would have kept the painted highlight).
+        // A paint stroke, then an erase stroke over the same segment: at full weight the target is
+        // the diffuse value again (a scale stroke with S = 1 would have kept the painted
+        // highlight).
         let text = r#"{"view": "default", "image_size": [100, 100], "keep_weight": 0.1, "strokes": [
             {"points": [[10, 10], [90, 10]], "mode": "paint", "color": [3, 3, 3], "radius": 8, "kappa": 0},
             {"points": [[50, 10]], "mode": "erase", "radius": 4, "kappa": 0.1}]}"#;
         let view = parse(text).unwrap().remove(0);
         assert_eq!(view.strokes[1].mode, Mode::Erase);
-        // Fit size = image size, so pixel (x, y) samples (x + ½, y + ½): (49, 9) and (51, 9) lie under
-        // both strokes (erase weights exp(−0.1·√0.5) and exp(−0.1·√2.5)), (19, 9) under the paint only.
+        // Fit size = image size, so pixel (x, y) samples (x + ½, y + ½): (49, 9) and (51, 9) lie
+        // under both strokes (erase weights exp(−0.1·√0.5) and exp(−0.1·√2.5)), (19, 9) under the
+        // paint only.
         let pixels = [(49u32, 9u32), (19, 9), (51, 9)];
         let diffuse = [[0.2, 0.3, 0.4]; 3];
         let t = targets(&view, &pixels, (100, 100), &diffuse);
@@ -312,7 +370,11 @@ mod tests {
             let w = (-0.1 * d).exp();
             for c in 0..3 {
                 let want = w * diffuse[i][c] + (1.0 - w) * 3.0;
-                assert!((t.target[i][c] - want).abs() < 1e-12, "{:?} vs {want}", t.target[i]);
+                assert!(
+                    (t.target[i][c] - want).abs() < 1e-12,
+                    "{:?} vs {want}",
+                    t.target[i]
+                );
             }
         }
         assert_eq!(t.target[1], [3.0; 3]);
@@ -322,7 +384,14 @@ mod tests {
     #[test]
     fn targets_map_fit_pixels_to_the_full_view_and_count_off_object_strokes() {
         let mut view = parse(ONE).unwrap().remove(0);
-        view.strokes.push(Stroke { points: vec![[600.0, 470.0]], mode: Mode::Paint, color: [1.0; 3], scale: 1.0, radius: 2.0, kappa: 0.0 });
+        view.strokes.push(Stroke {
+            points: vec![[600.0, 470.0]],
+            mode: Mode::Paint,
+            color: [1.0; 3],
+            scale: 1.0,
+            radius: 2.0,
+            kappa: 0.0,
+        });
         // Fit at 160x120: fit pixel (37, 24) has its centre at full-res (150, 98).
         let pixels = vec![(37, 24), (0, 0)];
         let t = targets(&view, &pixels, (160, 120), &[[0.1; 3], [0.2; 3]]);
@@ -338,16 +407,29 @@ mod tests {
 
 #[cfg(test)]
 mod schema_tests {
-    /// The schema names exactly the fields the parser accepts (a change to one must change the other).
+    /// The schema names exactly the fields the parser accepts (a change to one must change the
+    /// other).
     #[test]
     fn schema_matches_the_types() {
-        let schema: serde_json::Value = serde_json::from_str(include_str!("strokes.schema.json")).unwrap();
+        let schema: serde_json::Value =
+            serde_json::from_str(include_str!("strokes.schema.json")).unwrap();
         let keys = |def: &str| -> Vec<String> {
-            let mut k: Vec<String> = schema["$defs"][def]["properties"].as_object().unwrap().keys().cloned().collect();
+            let mut k: Vec<String> = schema["$defs"][def]["properties"]
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect();
             k.sort();
             k
         };
-        assert_eq!(keys("view"), ["image_size", "keep_weight", "strokes", "view"]);
-        assert_eq!(keys("stroke"), ["color", "kappa", "mode", "points", "radius", "scale"]);
+        assert_eq!(
+            keys("view"),
+            ["image_size", "keep_weight", "strokes", "view"]
+        );
+        assert_eq!(
+            keys("stroke"),
+            ["color", "kappa", "mode", "points", "radius", "scale"]
+        );
     }
 }

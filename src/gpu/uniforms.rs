@@ -82,7 +82,11 @@ mod tests {
         let module = naga::front::wgsl::parse_str(source).expect("parses");
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("lays out");
-        let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("{name} not in the shader"));
+        let (handle, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("{name} not in the shader"));
         layouter[handle].size
     }
 
@@ -90,15 +94,37 @@ mod tests {
     fn mirrors_match_the_wgsl_layouts() {
         let shade = include_str!("../../shaders/prt_shade.wgsl");
         let raster = include_str!("../../shaders/prt_raster.wgsl");
-        assert_eq!(wgsl_size(shade, "ShadeUniforms") as usize, size_of::<ShadeUniforms>());
-        assert_eq!(wgsl_size(shade, "GpuVertex") as usize, size_of::<GpuVertex>());
-        assert_eq!(wgsl_size(raster, "GpuVertex") as usize, size_of::<GpuVertex>());
-        assert_eq!(wgsl_size(shade, "PartitionEntry") as usize, size_of::<PartitionEntry>());
+        assert_eq!(
+            wgsl_size(shade, "ShadeUniforms") as usize,
+            size_of::<ShadeUniforms>()
+        );
+        assert_eq!(
+            wgsl_size(shade, "GpuVertex") as usize,
+            size_of::<GpuVertex>()
+        );
+        assert_eq!(
+            wgsl_size(raster, "GpuVertex") as usize,
+            size_of::<GpuVertex>()
+        );
+        assert_eq!(
+            wgsl_size(shade, "PartitionEntry") as usize,
+            size_of::<PartitionEntry>()
+        );
         assert_eq!(wgsl_size(shade, "GpuLeaf") as usize, size_of::<GpuLeaf>());
-        assert_eq!(wgsl_size(raster, "RasterUniforms") as usize, size_of::<RasterUniforms>());
+        assert_eq!(
+            wgsl_size(raster, "RasterUniforms") as usize,
+            size_of::<RasterUniforms>()
+        );
         // The constants the shader declares.
-        for (name, value) in [("FLAG_SPECULAR", FLAG_SPECULAR), ("FLAG_PREFILTER", FLAG_PREFILTER), ("FLAG_TANGENTS", FLAG_TANGENTS)] {
-            assert!(shade.contains(&format!("const {name}: u32 = {value}u;")), "{name} differs");
+        for (name, value) in [
+            ("FLAG_SPECULAR", FLAG_SPECULAR),
+            ("FLAG_PREFILTER", FLAG_PREFILTER),
+            ("FLAG_TANGENTS", FLAG_TANGENTS),
+        ] {
+            assert!(
+                shade.contains(&format!("const {name}: u32 = {value}u;")),
+                "{name} differs"
+            );
         }
         assert!(shade.contains(&format!("@workgroup_size({SHADE_WORKGROUP})")));
         assert!(shade.contains(&format!("levels: array<vec4<u32>, {MAX_TABLE_LEVELS}>")));

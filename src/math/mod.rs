@@ -1,6 +1,6 @@
-//! Small numeric building blocks shared by every stage: Gauss–Legendre quadrature, the exponentially
-//! scaled Bessel function I0e (for azimuthally averaged lobes), compensated sums and a deterministic
-//! PRNG.
+//! Small numeric building blocks shared by every stage: Gauss–Legendre quadrature, the
+//! exponentially scaled Bessel function I0e (for azimuthally averaged lobes), compensated sums and
+//! a deterministic PRNG.
 //!
 //! Inputs: plain numbers. Outputs: plain numbers. Invariants: everything here is pure (no IO, no
 //! global state) and f64; every function is finite for every finite input in its documented domain.
@@ -41,7 +41,10 @@ mod tests {
         let exact = 100_000.0;
         let naive: f64 = (0..n).map(|_| term).sum();
         let compensated = compensated_sum((0..n).map(|_| term));
-        assert!((compensated - exact).abs() <= 1e-9, "compensated {compensated}");
+        assert!(
+            (compensated - exact).abs() <= 1e-9,
+            "compensated {compensated}"
+        );
         assert!((naive - exact).abs() > (compensated - exact).abs());
     }
 }

@@ -1,9 +1,10 @@
 //! Gauss–Legendre quadrature on an interval.
 //!
-//! Inputs: the number of nodes `n` (1..=512). Outputs: nodes and weights on [-1, 1] (ascending), and a
-//! helper that integrates a closure over [a, b]. Invariants: the weights are positive and sum to 2
-//! within 1e-14; an n-point rule integrates polynomials of degree 2n-1 exactly (to rounding). Nodes are
-//! found by Newton's method on the Legendre recurrence, which converges to full precision for n ≤ 512.
+//! Inputs: the number of nodes `n` (1..=512). Outputs: nodes and weights on [-1, 1] (ascending),
+//! and a helper that integrates a closure over [a, b]. Invariants: the weights are positive and sum
+//! to 2 within 1e-14; an n-point rule integrates polynomials of degree 2n-1 exactly (to rounding).
+//! Nodes are found by Newton's method on the Legendre recurrence, which converges to full precision
+//! for n ≤ 512.
 
 /// An n-point Gauss–Legendre rule on [-1, 1].
 #[derive(Debug, Clone)]
@@ -70,7 +71,10 @@ impl GaussLegendre {
     pub fn on_interval(&self, a: f64, b: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
         let half = 0.5 * (b - a);
         let mid = 0.5 * (a + b);
-        self.nodes.iter().zip(&self.weights).map(move |(&x, &w)| (mid + half * x, half * w))
+        self.nodes
+            .iter()
+            .zip(&self.weights)
+            .map(move |(&x, &w)| (mid + half * x, half * w))
     }
 
     /// ∫_a^b f(x) dx.

@@ -1,6 +1,6 @@
-//! A small deterministic PRNG (xoshiro256++ seeded through splitmix64) for tests, sampling and Monte
-//! Carlo rendering. Inputs: a u64 seed. Outputs: uniform u64, f64 in [0, 1), uniform unit vectors.
-//! Invariant: the same seed gives the same sequence on every platform and thread count.
+//! A small deterministic PRNG (xoshiro256++ seeded through splitmix64) for tests, sampling and
+//! Monte Carlo rendering. Inputs: a u64 seed. Outputs: uniform u64, f64 in [0, 1), uniform unit
+//! vectors. Invariant: the same seed gives the same sequence on every platform and thread count.
 
 use glam::DVec3;
 
@@ -21,12 +21,16 @@ impl Rng {
             x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
             x ^ (x >> 31)
         };
-        Self { s: [next(), next(), next(), next()] }
+        Self {
+            s: [next(), next(), next(), next()],
+        }
     }
 
     /// Next uniform u64.
     pub fn next_u64(&mut self) -> u64 {
-        let result = (self.s[0].wrapping_add(self.s[3])).rotate_left(23).wrapping_add(self.s[0]);
+        let result = (self.s[0].wrapping_add(self.s[3]))
+            .rotate_left(23)
+            .wrapping_add(self.s[0]);
         let t = self.s[1] << 17;
         self.s[2] ^= self.s[0];
         self.s[3] ^= self.s[1];

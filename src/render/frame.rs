@@ -1,10 +1,11 @@
-//! A fitted material rendered on a bake, as `glint render` renders it: the PRT frame (tabulated p) or
-//! the Monte Carlo reference (exact lobes, rays against the mesh).
+//! A fitted material rendered on a bake, as `glint render` renders it: the PRT frame (tabulated p)
+//! or the Monte Carlo reference (exact lobes, rays against the mesh).
 //!
 //! Inputs: a [`LoadedBake`], a [`Material`], a camera and image size, the environment's rotation.
-//! Output: a linear [`Image`] (object pixels only; the caller fills the background) and what rendered
-//! it, in words. Invariants: the reference's shadow rays leave the surface at 1e-4 of the scene's
-//! diagonal (docs/conventions.md §6); an anisotropic material on a scene without tangents is an error.
+//! Output: a linear [`Image`] (object pixels only; the caller fills the background) and what
+//! rendered it, in words. Invariants: the reference's shadow rays leave the surface at 1e-4 of the
+//! scene's diagonal (docs/conventions.md §6); an anisotropic material on a scene without tangents
+//! is an error.
 
 use super::{ExactMaterial, Image, Prt, PrtSettings, Shading, Specular, render_reference, table};
 use crate::bake::{LoadedBake, Tracer};
@@ -38,26 +39,77 @@ pub fn material_lobes(bake: &LoadedBake, material: &Material) -> Result<LobeSet,
 }
 
 /// The CPU PRT frame (default settings, p tabulated at its default resolution).
-pub fn prt_frame(bake: &LoadedBake, material: &Material, camera: &Camera, (w, h): (u32, u32), rotation_rad: f64) -> Result<(Image, String), FrameError> {
+pub fn prt_frame(
+    bake: &LoadedBake,
+    material: &Material,
+    camera: &Camera,
+    (w, h): (u32, u32),
+    rotation_rad: f64,
+) -> Result<(Image, String), FrameError> {
     let lobes = material_lobes(bake, material)?;
     let (set, tree) = bake.light_tree()?;
     let c = &material.coefficients;
     let light = LightSums::new(&bake.env, &set, &tree, rotation_rad);
-    let prt = Prt::new(&bake.scene.mesh, &bake.cuts, &tree, bake.tangents.as_deref(), PrtSettings::default());
-    let t = table::PhTable::build(&lobes, [&c[0], &c[1], &c[2]], table::default_resolution(lobes.lambda()));
-    let img = prt.render(&light, camera, w, h, &Shading { rho_d: material.rho_d, f0: material.f0, specular: Specular::Table(&t) });
+    let prt = Prt::new(
+        &bake.scene.mesh,
+        &bake.cuts,
+        &tree,
+        bake.tangents.as_deref(),
+        PrtSettings::default(),
+    );
+    let t = table::PhTable::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        table::default_resolution(lobes.lambda()),
+    );
+    let img = prt.render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: material.rho_d,
+            f0: material.f0,
+            specular: Specular::Table(&t),
+        },
+    );
     Ok((img, format!("PRT, p(h) table {}²", t.resolution())))
 }
 
 /// The Monte Carlo reference with `spp` samples per pixel.
-pub fn reference_frame(bake: &LoadedBake, material: &Material, camera: &Camera, (w, h): (u32, u32), rotation_rad: f64, spp: u32) -> Result<(Image, String), FrameError> {
+pub fn reference_frame(
+    bake: &LoadedBake,
+    material: &Material,
+    camera: &Camera,
+    (w, h): (u32, u32),
+    rotation_rad: f64,
+    spp: u32,
+) -> Result<(Image, String), FrameError> {
     if spp == 0 {
         return Err(FrameError::NoSamples);
     }
     let lobes = material_lobes(bake, material)?;
     let tracer = Tracer::new(&bake.scene.mesh);
     let c = &material.coefficients;
-    let m = ExactMaterial { lobes: &lobes, coefficients: [&c[0], &c[1], &c[2]], rho_d: material.rho_d, f0: material.f0 };
-    let img = render_reference(&bake.scene.mesh, bake.tangents.as_deref(), &tracer, ray_offset(bake), &bake.env, rotation_rad, m, camera, w, h, spp, 1);
+    let m = ExactMaterial {
+        lobes: &lobes,
+        coefficients: [&c[0], &c[1], &c[2]],
+        rho_d: material.rho_d,
+        f0: material.f0,
+    };
+    let img = render_reference(
+        &bake.scene.mesh,
+        bake.tangents.as_deref(),
+        &tracer,
+        ray_offset(bake),
+        &bake.env,
+        rotation_rad,
+        m,
+        camera,
+        w,
+        h,
+        spp,
+        1,
+    );
     Ok((img, format!("Monte Carlo reference, {spp} spp")))
 }

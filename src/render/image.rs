@@ -37,7 +37,12 @@ impl Image {
     /// Black, nothing covered.
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;
-        Self { width, height, pixels: vec![[0.0; 3]; n], covered: vec![false; n] }
+        Self {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; n],
+            covered: vec![false; n],
+        }
     }
 
     /// Sets a covered pixel.
@@ -76,7 +81,8 @@ impl Image {
         }
     }
 
-    /// ‖a − b‖₂ / ‖b‖₂ over the pixels both cover (all channels); `None` when none is shared or b is 0.
+    /// ‖a − b‖₂ / ‖b‖₂ over the pixels both cover (all channels); `None` when none is shared or b
+    /// is 0.
     pub fn relative_rmse(&self, reference: &Image) -> Option<f64> {
         if self.width != reference.width || self.height != reference.height {
             return None;
@@ -98,37 +104,66 @@ impl Image {
     /// Writes `.exr` (linear f32 RGBA, A the coverage) or `.png` (tone-mapped sRGB at `exposure`),
     /// atomically.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
         let bytes = match ext.as_deref() {
-            Some("exr") => self.exr_bytes().map_err(|reason| ImageError::Encode { path: path.display().to_string(), reason })?,
-            Some("png") => self.png_bytes(exposure).map_err(|reason| ImageError::Encode { path: path.display().to_string(), reason })?,
-            _ => return Err(ImageError::Extension { path: path.display().to_string() }),
+            Some("exr") => self.exr_bytes().map_err(|reason| ImageError::Encode {
+                path: path.display().to_string(),
+                reason,
+            })?,
+            Some("png") => self
+                .png_bytes(exposure)
+                .map_err(|reason| ImageError::Encode {
+                    path: path.display().to_string(),
+                    reason,
+                })?,
+            _ => {
+                return Err(ImageError::Extension {
+                    path: path.display().to_string(),
+                });
+            }
         };
         glint_exporters::write_atomic(path, &bytes)?;
         Ok(())
     }
 
-    /// The linear image as EXR bytes: f32 RGB radiance and A, the coverage (1 on object pixels, 0 on
-    /// the background), so a comparison can mask object pixels (docs/conventions.md §4).
+    /// The linear image as EXR bytes: f32 RGB radiance and A, the coverage (1 on object pixels, 0
+    /// on the background), so a comparison can mask object pixels (docs/conventions.md §4).
     pub fn exr_bytes(&self) -> Result<Vec<u8>, String> {
         use exr::prelude::*;
         let w = self.width as usize;
         let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
             let p = self.pixels[y * w + x];
-            (p[0], p[1], p[2], if self.covered[y * w + x] { 1.0f32 } else { 0.0 })
+            (
+                p[0],
+                p[1],
+                p[2],
+                if self.covered[y * w + x] { 1.0f32 } else { 0.0 },
+            )
         });
         let image = Image::from_channels((w, self.height as usize), channels);
         let mut out = std::io::Cursor::new(Vec::new());
-        image.write().to_buffered(&mut out).map_err(|e| e.to_string())?;
+        image
+            .write()
+            .to_buffered(&mut out)
+            .map_err(|e| e.to_string())?;
         Ok(out.into_inner())
     }
 
     /// Tone-mapped 8-bit sRGB, as PNG bytes.
     pub fn png_bytes(&self, exposure: f32) -> Result<Vec<u8>, String> {
-        let rgb: Vec<u8> = self.pixels.iter().flat_map(|p| p.map(|v| encode_srgb(aces(v.max(0.0) * exposure)))).collect();
-        let img = image::RgbImage::from_raw(self.width, self.height, rgb).ok_or("image size mismatch")?;
+        let rgb: Vec<u8> = self
+            .pixels
+            .iter()
+            .flat_map(|p| p.map(|v| encode_srgb(aces(v.max(0.0) * exposure))))
+            .collect();
+        let img =
+            image::RgbImage::from_raw(self.width, self.height, rgb).ok_or("image size mismatch")?;
         let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png).map_err(|e| e.to_string())?;
+        img.write_to(&mut out, image::ImageFormat::Png)
+            .map_err(|e| e.to_string())?;
         Ok(out.into_inner())
     }
 }
@@ -140,6 +175,10 @@ fn aces(x: f32) -> f32 {
 }
 
 fn encode_srgb(x: f32) -> u8 {
-    let s = if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+    let s = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
     (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }

@@ -9,14 +9,15 @@
 //!   Blender's Cycles also applies) and offset along its shading normal by the bake's offset;
 //! - f_r: the exact lobe sum (closed form, no table), ρd/π + p(h) s(ωi, ωo);
 //! - two strategies combined by multiple importance sampling (power heuristic): the environment
-//!   (texels ∝ luminance × sin θ, uniform within the texel, mixed with 10 % uniform directions: L/pdf
-//!   is then nearly constant, even for a one-texel sun) and the BRDF (cosine lobe for ρd, the lobes themselves for p:
-//!   a lobe picked ∝ its coefficient, h drawn from its von Mises–Fisher density exp(2λ(h·ξ − 1))).
+//!   (texels ∝ luminance × sin θ, uniform within the texel, mixed with 10 % uniform directions:
+//!   L/pdf is then nearly constant, even for a one-texel sun) and the BRDF (cosine lobe for ρd, the
+//!   lobes themselves for p: a lobe picked ∝ its coefficient, h drawn from its von Mises–Fisher
+//!   density exp(2λ(h·ξ − 1))).
 //!
-//! Inputs: the scene's mesh and tangents, a [`Tracer`], the environment and rotation, the material, a
-//! camera, a size, samples per pixel and a seed. Output: an [`Image`] (object pixels only).
-//! Invariants: each pixel has its own random stream seeded from (seed, pixel), so the image does not
-//! depend on the thread count; f64 accumulation; no IO.
+//! Inputs: the scene's mesh and tangents, a [`Tracer`], the environment and rotation, the material,
+//! a camera, a size, samples per pixel and a seed. Output: an [`Image`] (object pixels only).
+//! Invariants: each pixel has its own random stream seeded from (seed, pixel), so the image does
+//! not depend on the thread count; f64 accumulation; no IO.
 
 use super::image::Image;
 use crate::bake::tracer::Tracer;
@@ -74,7 +75,13 @@ impl<'a> EnvSampler<'a> {
             rows.push(rows[r] + acc);
         }
         let total = rows[h];
-        Self { env, rotation_rad, rows, cols, total }
+        Self {
+            env,
+            rotation_rad,
+            rows,
+            cols,
+            total,
+        }
     }
 
     /// A direction (world) and its density (per steradian) under the mixture.
@@ -92,7 +99,10 @@ impl<'a> EnvSampler<'a> {
             let r = search(&self.rows, a * self.total);
             let row = &self.cols[r * (w + 1)..(r + 1) * (w + 1)];
             let c = search(row, b * row[w]);
-            let (u, v) = ((c as f64 + rng.next_f64()) / w as f64, (r as f64 + rng.next_f64()) / h as f64);
+            let (u, v) = (
+                (c as f64 + rng.next_f64()) / w as f64,
+                (r as f64 + rng.next_f64()) / h as f64,
+            );
             rotate_y(uv_to_direction(u, v), self.rotation_rad)
         };
         (d, self.pdf(d))
@@ -123,7 +133,10 @@ fn radical_inverse(i: u32) -> f64 {
 /// Index i with cdf[i] ≤ x < cdf[i + 1] (cdf ascending, cdf[0] = 0), skipping empty bins.
 fn search(cdf: &[f64], x: f64) -> usize {
     let n = cdf.len() - 1;
-    let i = cdf.partition_point(|&c| c <= x).saturating_sub(1).min(n - 1);
+    let i = cdf
+        .partition_point(|&c| c <= x)
+        .saturating_sub(1)
+        .min(n - 1);
     // Land on a bin of positive width (x may sit exactly on a boundary).
     let mut k = i;
     while k + 1 < n && cdf[k + 1] <= cdf[k] {
@@ -148,16 +161,31 @@ impl<'a> Brdf<'a> {
     fn new(m: ExactMaterial<'a>) -> Self {
         let mut lobe_cdf = vec![0.0];
         for j in 0..m.lobes.len() {
-            let w: f64 = (0..3).map(|c| [0.2126, 0.7152, 0.0722][c] * m.coefficients[c].get(j).copied().unwrap_or(0.0).max(0.0)).sum();
+            let w: f64 = (0..3)
+                .map(|c| {
+                    [0.2126, 0.7152, 0.0722][c]
+                        * m.coefficients[c].get(j).copied().unwrap_or(0.0).max(0.0)
+                })
+                .sum();
             lobe_cdf.push(lobe_cdf[j] + w);
         }
         let kappa = 2.0 * m.lobes.lambda();
         // Rough albedos: the lobes' Σ c_j ∫G (∫G ≈ π/λ) against ρd.
         let spec = lobe_cdf[m.lobes.len()] * PI / m.lobes.lambda();
         let diff = 0.2126 * m.rho_d[0] + 0.7152 * m.rho_d[1] + 0.0722 * m.rho_d[2];
-        let q_spec = if lobe_cdf[m.lobes.len()] <= 0.0 { 0.0 } else { (spec / (spec + diff).max(1e-300)).clamp(0.2, 0.8) };
+        let q_spec = if lobe_cdf[m.lobes.len()] <= 0.0 {
+            0.0
+        } else {
+            (spec / (spec + diff).max(1e-300)).clamp(0.2, 0.8)
+        };
         let vmf_norm = kappa / (2.0 * PI * -(-2.0 * kappa).exp_m1());
-        Self { m, lobe_cdf, q_spec, kappa, vmf_norm }
+        Self {
+            m,
+            lobe_cdf,
+            q_spec,
+            kappa,
+            vmf_norm,
+        }
     }
 
     fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
@@ -166,13 +194,16 @@ impl<'a> Brdf<'a> {
             return [0.0; 3];
         }
         if wo.z <= 0.0 {
-            // Shading normal facing away from the eye: diffuse only (the renderers' shared convention).
+            // Shading normal facing away from the eye: diffuse only (the renderers' shared
+            // convention).
             return diffuse;
         }
         if self.q_spec == 0.0 {
             return diffuse;
         }
-        let Some(h) = (wi + wo).try_normalize() else { return diffuse };
+        let Some(h) = (wi + wo).try_normalize() else {
+            return diffuse;
+        };
         let s = static_term(wi, wo, self.m.f0);
         let mut p = [0.0f64; 3];
         for j in 0..self.m.lobes.len() {
@@ -228,23 +259,29 @@ impl<'a> Brdf<'a> {
         let j = search(&self.lobe_cdf, rng.next_f64() * total);
         let mut xi = self.m.lobes.centres()[j];
         if self.m.lobes.layout().is_isotropic() {
-            // A ring lobe is its centre's lobe averaged over the azimuth: rotate the centre at random.
+            // A ring lobe is its centre's lobe averaged over the azimuth: rotate the centre at
+            // random.
             let phi = 2.0 * PI * rng.next_f64();
             let r = (xi.x * xi.x + xi.y * xi.y).sqrt();
             xi = DVec3::new(r * phi.cos(), r * phi.sin(), xi.z);
         }
         // vMF about ξ: cos α = 1 + ln(u + (1 − u) e^−2κ)/κ.
         let u = rng.next_f64();
-        let cos_a = (1.0 + (u + (1.0 - u) * (-2.0 * self.kappa).exp()).ln() / self.kappa).clamp(-1.0, 1.0);
+        let cos_a =
+            (1.0 + (u + (1.0 - u) * (-2.0 * self.kappa).exp()).ln() / self.kappa).clamp(-1.0, 1.0);
         let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
         let phi = 2.0 * PI * rng.next_f64();
-        let h = Frame::from_normal(xi).to_world(DVec3::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a));
+        let h = Frame::from_normal(xi).to_world(DVec3::new(
+            sin_a * phi.cos(),
+            sin_a * phi.sin(),
+            cos_a,
+        ));
         2.0 * wo.dot(h) * h - wo
     }
 }
 
-/// Renders the Monte Carlo reference at `spp` samples per pixel (each sample: one environment sample
-/// and one BRDF sample, MIS-weighted).
+/// Renders the Monte Carlo reference at `spp` samples per pixel (each sample: one environment
+/// sample and one BRDF sample, MIS-weighted).
 #[allow(clippy::too_many_arguments)]
 pub fn render_reference(
     mesh: &Mesh,
@@ -265,7 +302,10 @@ pub fn render_reference(
     // Where the shading normal faces away from the eye only the diffuse term is kept (as in the PRT
     // renderer and the transfer): sampled by the cosine alone.
     let zero = vec![0.0; material.lobes.len()];
-    let diffuse_only = Brdf::new(ExactMaterial { coefficients: [&zero, &zero, &zero], ..material });
+    let diffuse_only = Brdf::new(ExactMaterial {
+        coefficients: [&zero, &zero, &zero],
+        ..material
+    });
     let eye = camera.eye().as_dvec3();
     let fragments = rasterize(mesh, camera, width, height);
     let shaded: Vec<(u32, u32, [f64; 3])> = fragments
@@ -273,27 +313,46 @@ pub fn render_reference(
         .map(|f| {
             let tri = mesh.triangles[f.triangle as usize];
             let b = f.bary.map(|x| x as f64);
-            let position: DVec3 = (0..3).map(|i| mesh.positions[tri[i] as usize].as_dvec3() * b[i]).sum();
-            let normal = (0..3).map(|i| mesh.normals[tri[i] as usize].as_dvec3() * b[i]).sum::<DVec3>().try_normalize().unwrap_or(DVec3::Y);
+            let position: DVec3 = (0..3)
+                .map(|i| mesh.positions[tri[i] as usize].as_dvec3() * b[i])
+                .sum();
+            let normal = (0..3)
+                .map(|i| mesh.normals[tri[i] as usize].as_dvec3() * b[i])
+                .sum::<DVec3>()
+                .try_normalize()
+                .unwrap_or(DVec3::Y);
             let frame = match tangents {
                 Some(t) => {
                     let tw: Vec4 = (0..3).map(|i| t[tri[i] as usize] * f.bary[i]).sum();
-                    Frame::from_normal_tangent(normal, tw.truncate().as_dvec3(), if tw.w < 0.0 { -1.0 } else { 1.0 })
+                    Frame::from_normal_tangent(
+                        normal,
+                        tw.truncate().as_dvec3(),
+                        if tw.w < 0.0 { -1.0 } else { 1.0 },
+                    )
                 }
                 None => Frame::from_normal(normal),
             };
             let wo = frame.to_local((eye - position).try_normalize().unwrap_or(normal));
             let brdf = if wo.z > 0.0 { &full } else { &diffuse_only };
-            // Rays leave from the smooth surface the normals describe, not from the flat facet: from
-            // the facet, directions above the shading normal's horizon but below the facet's plane
-            // hit the facet itself, which darkened coarse meshes in stripes along their facets
-            // (the shadow terminator; the bake's rays leave from vertices, which lie on that surface).
-            let origin = crate::scene::smooth_surface_point(mesh, &[(tri[0], b[0]), (tri[1], b[1]), (tri[2], b[2])], position) + normal * ray_offset;
+            // Rays leave from the smooth surface the normals describe, not from the flat facet:
+            // from the facet, directions above the shading normal's horizon but below the facet's
+            // plane hit the facet itself, which darkened coarse meshes in stripes along their
+            // facets (the shadow terminator; the bake's rays leave from vertices, which lie on that
+            // surface).
+            let origin = crate::scene::smooth_surface_point(
+                mesh,
+                &[(tri[0], b[0]), (tri[1], b[1]), (tri[2], b[2])],
+                position,
+            ) + normal * ray_offset;
             let o = Vec3A::new(origin.x as f32, origin.y as f32, origin.z as f32);
-            let visible = |d: DVec3| !tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32));
-            let mut rng = Rng::new(seed ^ ((f.y as u64) << 32 | f.x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-            // Environment samples are stratified: a Hammersley set rotated per pixel (Cranley–Patterson),
-            // so a few bright lights are each visited in proportion, not by chance.
+            let visible =
+                |d: DVec3| !tracer.occluded(o, Vec3A::new(d.x as f32, d.y as f32, d.z as f32));
+            let mut rng = Rng::new(
+                seed ^ ((f.y as u64) << 32 | f.x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+            );
+            // Environment samples are stratified: a Hammersley set rotated per pixel
+            // (Cranley–Patterson), so a few bright lights are each visited in proportion, not by
+            // chance.
             let (shift_a, shift_b) = (rng.next_f64(), rng.next_f64());
             let mut sum = [0.0f64; 3];
             for s in 0..spp {
@@ -345,9 +404,13 @@ mod tests {
 
     #[test]
     fn environment_sampling_integrates_the_map_with_low_variance() {
-        // ∫ L dω by sampling the map itself: unbiased against the map's own texel sum, and the weights
-        // L/pdf nearly constant (the map is importance-sampled), for a smooth map and a map with a sun.
-        let smooth = EnvMap::from_fn(256, 128, |d| [(1.0 + d.x + 0.5 * d.y) as f32, 1.0, (2.0 + d.z) as f32]).unwrap();
+        // ∫ L dω by sampling the map itself: unbiased against the map's own texel sum, and the
+        // weights L/pdf nearly constant (the map is importance-sampled), for a smooth map and a map
+        // with a sun.
+        let smooth = EnvMap::from_fn(256, 128, |d| {
+            [(1.0 + d.x + 0.5 * d.y) as f32, 1.0, (2.0 + d.z) as f32]
+        })
+        .unwrap();
         let mut texels = vec![[0.01f32; 3]; 256 * 128];
         texels[40 * 256 + 77] = [5e4; 3];
         let sun = EnvMap::from_rgb(256, 128, texels, "sun").unwrap();
@@ -360,19 +423,23 @@ mod tests {
                 let (mut sum, mut sum2) = (0.0, 0.0);
                 for _ in 0..n {
                     let (d, pdf) = sampler.sample(&mut rng);
-                    assert!((pdf - sampler.pdf(d)).abs() <= 1e-9 * pdf, "pdf consistency");
+                    assert!(
+                        (pdf - sampler.pdf(d)).abs() <= 1e-9 * pdf,
+                        "pdf consistency"
+                    );
                     let x = env.lookup_nearest(d, rotation)[1] / pdf;
                     sum += x;
                     sum2 += x * x;
                 }
                 let mean = sum / n as f64;
                 let rel_sd = ((sum2 / n as f64 - mean * mean).max(0.0)).sqrt() / mean;
-                println!("{} rot {rotation}: estimate {mean:.5} vs {want:.5}, per-sample relative sd {rel_sd:.3}", env.source());
+                println!(
+                    "{} rot {rotation}: estimate {mean:.5} vs {want:.5}, per-sample relative sd {rel_sd:.3}",
+                    env.source()
+                );
                 assert!((mean - want).abs() < 0.01 * want, "{mean} vs {want}");
                 assert!(rel_sd < 0.5, "relative sd {rel_sd}");
             }
         }
     }
 }
-
-

@@ -2,27 +2,28 @@
 //!
 //! Inputs: a lobe set and its 3 × J coefficients; a resolution R. Output: a [`PhTable`] of RGB p(h)
 //! on the hemi-octahedral map ([`crate::sphere::hemi_oct`]), sampled on a corner-aligned grid:
-//! texel (x, y) holds p at (u, v) = (x/(R − 1), y/(R − 1)), row-major, so the outermost texels lie on
-//! the horizon and bilinear interpolation covers the whole square without clamping (a half-texel
-//! clamp at the horizon cost up to 4 % of the peak there); plus a stack of *pre-filtered* levels for
-//! the renderers.
+//! texel (x, y) holds p at (u, v) = (x/(R − 1), y/(R − 1)), row-major, so the outermost texels lie
+//! on the horizon and bilinear interpolation covers the whole square without clamping (a half-texel
+//! clamp at the horizon cost up to 4 % of the peak there); plus a stack of *pre-filtered* levels
+//! for the renderers.
 //!
-//! Pre-filtering: a renderer that sums light over a run of directions evaluates the BRDF once, at the
-//! run's light direction. The run's light has an angular spread (per-axis variance v_ω, rad²: for a run
-//! of mean resultant length r, v_ω = 1 − r); in half-vector space that is v_h = v_ω / (4 wo·h). The mean
-//! of a lobe exp(2λ(h·ξ − 1)) ≈ exp(−λ α²) under a Gaussian jitter of per-axis variance v is the lobe
-//! with λ' = λ/(1 + 2λv), scaled by λ'/λ (variances add; the integral is kept). Level ℓ holds p with
-//! λ_ℓ = λ / 2^(ℓ/2) (half-octave steps); a lookup blends the two levels around
-//! ℓ = 2·log2(1 + 2λ v_h) linearly. Level 0 is p itself; the exported table is level 0.
-//! [`filtered_exact`] is the closed form the levels sample, for tests.
+//! Pre-filtering: a renderer that sums light over a run of directions evaluates the BRDF once, at
+//! the run's light direction. The run's light has an angular spread (per-axis variance v_ω, rad²:
+//! for a run of mean resultant length r, v_ω = 1 − r); in half-vector space that is v_h = v_ω / (4
+//! wo·h). The mean of a lobe exp(2λ(h·ξ − 1)) ≈ exp(−λ α²) under a Gaussian jitter of per-axis
+//! variance v is the lobe with λ' = λ/(1 + 2λv), scaled by λ'/λ (variances add; the integral is
+//! kept). Level ℓ holds p with λ_ℓ = λ / 2^(ℓ/2) (half-octave steps); a lookup blends the two
+//! levels around ℓ = 2·log2(1 + 2λ v_h) linearly. Level 0 is p itself; the exported table is level
+//! 0. [`filtered_exact`] is the closed form the levels sample, for tests.
 //!
 //! Isotropic lobe sets (rings: p depends on θ_h only) are evaluated exactly on a polar profile per
-//! level, p at q = √(1 − cos θ_h) on 8 R + 1 points, and the texels interpolate it; the profile is kept
-//! for the CPU frame's lookups ([`PhTable::lookup_profile_filtered`]: no 2D interpolation error).
+//! level, p at q = √(1 − cos θ_h) on 8 R + 1 points, and the texels interpolate it; the profile is
+//! kept for the CPU frame's lookups ([`PhTable::lookup_profile_filtered`]: no 2D interpolation
+//! error).
 //!
-//! Invariants: texels ≥ 0 (coefficients are ≥ 0); levels shrink with the lobes' width, never below 16
-//! texels a side; building only evaluates lobes whose support (G ≥ e^−14) reaches a texel (or, for
-//! isotropic sets, every active lobe at the profile's points); no IO.
+//! Invariants: texels ≥ 0 (coefficients are ≥ 0); levels shrink with the lobes' width, never below
+//! 16 texels a side; building only evaluates lobes whose support (G ≥ e^−14) reaches a texel (or,
+//! for isotropic sets, every active lobe at the profile's points); no IO.
 
 use crate::sphere::{LobeSet, hemi_oct, srbf};
 use glam::DVec3;
@@ -38,8 +39,8 @@ const CUTOFF: f64 = 14.0;
 struct Level {
     resolution: usize,
     texels: Vec<[f32; 3]>,
-    /// Isotropic sets only (else empty): p at q = √(1 − h·n) = k / (len − 1), k = 0..len, q ∈ [0, 1]
-    /// (q ≈ θ_h/√2 near the normal, 1 at the horizon).
+    /// Isotropic sets only (else empty): p at q = √(1 − h·n) = k / (len − 1), k = 0..len, q ∈ [0,
+    /// 1] (q ≈ θ_h/√2 near the normal, 1 at the horizon).
     profile: Vec<[f32; 3]>,
 }
 
@@ -54,11 +55,14 @@ pub struct PhTable {
 /// (256 for the paper's σ = π/40: bilinear error under 1 % of the peak, tests below).
 pub fn default_resolution(lambda: f64) -> usize {
     let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(0.08);
-    ((16.0 / sigma).ceil() as usize).next_power_of_two().clamp(64, 2048)
+    ((16.0 / sigma).ceil() as usize)
+        .next_power_of_two()
+        .clamp(64, 2048)
 }
 
 impl PhTable {
-    /// Tabulates p(h) = Σ_j c_j G_j(h) per channel at `resolution` (level 0) and its pre-filtered levels.
+    /// Tabulates p(h) = Σ_j c_j G_j(h) per channel at `resolution` (level 0) and its pre-filtered
+    /// levels.
     pub fn build(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize) -> Self {
         Self::build_levels(lobes, coefficients, resolution, true)
     }
@@ -68,19 +72,39 @@ impl PhTable {
         Self::build_levels(lobes, coefficients, resolution, false)
     }
 
-    fn build_levels(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize, filtered: bool) -> Self {
+    fn build_levels(
+        lobes: &LobeSet,
+        coefficients: [&[f64]; 3],
+        resolution: usize,
+        filtered: bool,
+    ) -> Self {
         let lambda = lobes.lambda();
         let resolution = resolution.clamp(16, 8192);
         // Lobes with any positive coefficient.
-        let active: Vec<usize> = (0..lobes.len()).filter(|&j| coefficients.iter().any(|c| c.get(j).copied().unwrap_or(0.0) > 0.0)).collect();
+        let active: Vec<usize> = (0..lobes.len())
+            .filter(|&j| {
+                coefficients
+                    .iter()
+                    .any(|c| c.get(j).copied().unwrap_or(0.0) > 0.0)
+            })
+            .collect();
         let mut levels = Vec::new();
         let mut level = 0usize;
         loop {
             let factor = 2f64.powf(level as f64 * LEVEL_STEP_OCTAVES);
             let lambda_l = lambda / factor;
             // Lobe width grows as √factor: the grid may shrink as much.
-            let res = ((resolution as f64 / factor.sqrt()).round() as usize).max(16).min(resolution);
-            levels.push(tabulate(lobes, &active, coefficients, lambda_l, lambda_l / lambda, res));
+            let res = ((resolution as f64 / factor.sqrt()).round() as usize)
+                .max(16)
+                .min(resolution);
+            levels.push(tabulate(
+                lobes,
+                &active,
+                coefficients,
+                lambda_l,
+                lambda_l / lambda,
+                res,
+            ));
             level += 1;
             // Stop once the lobes are nearly flat (λ < ¼) or after 40 levels (λ up to 2^20).
             if !filtered || lambda_l < 0.25 || level >= 40 {
@@ -112,12 +136,17 @@ impl PhTable {
 
     /// (resolution, texels) of each level, for the GPU upload.
     pub fn levels(&self) -> impl Iterator<Item = (usize, &[[f32; 3]])> {
-        self.levels.iter().map(|l| (l.resolution, l.texels.as_slice()))
+        self.levels
+            .iter()
+            .map(|l| (l.resolution, l.texels.as_slice()))
     }
 
     /// Bytes of all levels (texels and polar profiles).
     pub fn bytes(&self) -> usize {
-        self.levels.iter().map(|l| (l.texels.len() + l.profile.len()) * 12).sum()
+        self.levels
+            .iter()
+            .map(|l| (l.texels.len() + l.profile.len()) * 12)
+            .sum()
     }
 
     /// p(h) at a local unit half-vector (bilinear on level 0).
@@ -144,17 +173,22 @@ impl PhTable {
             return a;
         }
         let b = sample(&self.levels[i + 1]);
-        [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f]
+        [
+            a[0] + (b[0] - a[0]) * f,
+            a[1] + (b[1] - a[1]) * f,
+            a[2] + (b[2] - a[2]) * f,
+        ]
     }
 
-    /// Whether the table holds polar profiles (isotropic lobe sets): [`PhTable::lookup_profile_filtered`].
+    /// Whether the table holds polar profiles (isotropic lobe sets):
+    /// [`PhTable::lookup_profile_filtered`].
     pub fn has_profile(&self) -> bool {
         !self.levels[0].profile.is_empty()
     }
 
-    /// As [`PhTable::lookup_filtered`], from the levels' polar profiles instead of their texels (same
-    /// levels, same blend): no 2D interpolation error and two cache lines per level instead of four
-    /// texels spread over a 2D grid. `None` for anisotropic tables.
+    /// As [`PhTable::lookup_filtered`], from the levels' polar profiles instead of their texels
+    /// (same levels, same blend): no 2D interpolation error and two cache lines per level instead
+    /// of four texels spread over a 2D grid. `None` for anisotropic tables.
     #[inline]
     pub fn lookup_profile_filtered(&self, h: DVec3, spread: f64) -> Option<[f64; 3]> {
         if !self.has_profile() {
@@ -190,17 +224,27 @@ fn fast_log2(x: f32) -> f32 {
     }
     // t = m − 1 ∈ [0, 1): a least-squares quintic in t, within 2.9e-5 of log2(1 + t).
     let t = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000) - 1.0;
-    let p = t * (1.441_825_8 + t * (-0.708_682_1 + t * (0.415_421_95 + t * (-0.194_422_67 + t * 0.045_885_527))));
+    let p = t
+        * (1.441_825_8
+            + t * (-0.708_682_1 + t * (0.415_421_95 + t * (-0.194_422_67 + t * 0.045_885_527))));
     (e - 127) as f32 + p
 }
 
 /// The closed form the levels sample: Σ c_j (λ'/λ) G_j(h; λ'), λ' = λ/(1 + 2λ·spread), per channel.
-pub fn filtered_exact(lobes: &LobeSet, coefficients: [&[f64]; 3], h: DVec3, spread: f64) -> [f64; 3] {
+pub fn filtered_exact(
+    lobes: &LobeSet,
+    coefficients: [&[f64]; 3],
+    h: DVec3,
+    spread: f64,
+) -> [f64; 3] {
     let lambda = lobes.lambda();
     let lp = lambda / (1.0 + 2.0 * lambda * spread.max(0.0));
     let mut out = [0.0f64; 3];
     for j in 0..lobes.len() {
-        if coefficients.iter().all(|c| c.get(j).copied().unwrap_or(0.0) == 0.0) {
+        if coefficients
+            .iter()
+            .all(|c| c.get(j).copied().unwrap_or(0.0) == 0.0)
+        {
             continue;
         }
         let g = lobes.eval_exact_lambda(j, h, lp) * (lp / lambda);
@@ -211,13 +255,20 @@ pub fn filtered_exact(lobes: &LobeSet, coefficients: [&[f64]; 3], h: DVec3, spre
     out
 }
 
-/// Samples of the polar profile that isotropic tables interpolate, per texel of the level's side:
-/// 8 R intervals of q = √(1 − cos θ_h) over [0, 1] (2048 at R = 256, 24 KB) keep the linear
-/// interpolation's error, about (Δq/σ_q)²/8 of the peak with σ_q ≈ σ/√2, near 1e-5 (R grows as 16/σ,
-/// so Δq/σ_q stays below √2/128).
+/// Samples of the polar profile that isotropic tables interpolate, per texel of the level's side: 8
+/// R intervals of q = √(1 − cos θ_h) over [0, 1] (2048 at R = 256, 24 KB) keep the linear
+/// interpolation's error, about (Δq/σ_q)²/8 of the peak with σ_q ≈ σ/√2, near 1e-5 (R grows as
+/// 16/σ, so Δq/σ_q stays below √2/128).
 const PROFILE_SAMPLES_PER_TEXEL: usize = 8;
 
-fn tabulate(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3], lambda_l: f64, scale: f64, res: usize) -> Level {
+fn tabulate(
+    lobes: &LobeSet,
+    active: &[usize],
+    coefficients: [&[f64]; 3],
+    lambda_l: f64,
+    scale: f64,
+    res: usize,
+) -> Level {
     if lobes.layout().is_isotropic() {
         tabulate_isotropic(lobes, active, coefficients, lambda_l, scale, res)
     } else {
@@ -226,9 +277,17 @@ fn tabulate(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3], lambda
 }
 
 /// Every texel sums the lobes whose support reaches it.
-fn tabulate_direct(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3], lambda_l: f64, scale: f64, res: usize) -> Level {
+fn tabulate_direct(
+    lobes: &LobeSet,
+    active: &[usize],
+    coefficients: [&[f64]; 3],
+    lambda_l: f64,
+    scale: f64,
+    res: usize,
+) -> Level {
     let support = LobeSet::support_angle(lambda_l, CUTOFF);
-    // A texel's bilinear footprint reaches about 1.5 texels; the map's texels are at most ~π/R wide.
+    // A texel's bilinear footprint reaches about 1.5 texels; the map's texels are at most ~π/R
+    // wide.
     let slack = 1.5 * std::f64::consts::PI / (res - 1) as f64;
     let texels: Vec<[f32; 3]> = (0..res * res)
         .into_par_iter()
@@ -248,14 +307,26 @@ fn tabulate_direct(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3],
             p.map(|v| v as f32)
         })
         .collect();
-    Level { resolution: res, texels, profile: Vec::new() }
+    Level {
+        resolution: res,
+        texels,
+        profile: Vec::new(),
+    }
 }
 
-/// Ring lobes depend on the half-vector's polar angle only: p is evaluated exactly on a fine profile
-/// over q = √(1 − cos θ_h) ∈ [0, 1] and each texel interpolates it linearly (J lobe evaluations per
-/// profile sample instead of per texel: 18 levels of 256² texels took 0.2 s, the profile a few ms).
-/// The profile is kept: the CPU frame reads it instead of the texels ([`PhTable::lookup_profile_filtered`]).
-fn tabulate_isotropic(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 3], lambda_l: f64, scale: f64, res: usize) -> Level {
+/// Ring lobes depend on the half-vector's polar angle only: p is evaluated exactly on a fine
+/// profile over q = √(1 − cos θ_h) ∈ [0, 1] and each texel interpolates it linearly (J lobe
+/// evaluations per profile sample instead of per texel: 18 levels of 256² texels took 0.2 s, the
+/// profile a few ms). The profile is kept: the CPU frame reads it instead of the texels
+/// ([`PhTable::lookup_profile_filtered`]).
+fn tabulate_isotropic(
+    lobes: &LobeSet,
+    active: &[usize],
+    coefficients: [&[f64]; 3],
+    lambda_l: f64,
+    scale: f64,
+    res: usize,
+) -> Level {
     let samples = PROFILE_SAMPLES_PER_TEXEL * res;
     let profile: Vec<[f64; 3]> = (0..=samples)
         .into_par_iter()
@@ -281,7 +352,11 @@ fn tabulate_isotropic(lobes: &LobeSet, active: &[usize], coefficients: [&[f64]; 
             profile_at(&profile, h.z).map(|v| v as f32)
         })
         .collect();
-    Level { resolution: res, texels, profile: profile.iter().map(|p| p.map(|v| v as f32)).collect() }
+    Level {
+        resolution: res,
+        texels,
+        profile: profile.iter().map(|p| p.map(|v| v as f32)).collect(),
+    }
 }
 
 /// Linear interpolation of a q-profile at cos θ_h = z.
@@ -311,7 +386,12 @@ fn bilinear(level: &Level, h: DVec3) -> [f64; 3] {
     let (x1, y1) = ((x0 + 1).min(r - 1), (y0 + 1).min(r - 1));
     let (fx, fy) = (x - x0 as f64, y - y0 as f64);
     let t = &level.texels;
-    let (a, b, c, d) = (t[y0 * r + x0], t[y0 * r + x1], t[y1 * r + x0], t[y1 * r + x1]);
+    let (a, b, c, d) = (
+        t[y0 * r + x0],
+        t[y0 * r + x1],
+        t[y1 * r + x0],
+        t[y1 * r + x1],
+    );
     std::array::from_fn(|k| {
         let top = a[k] as f64 + (b[k] as f64 - a[k] as f64) * fx;
         let bottom = c[k] as f64 + (d[k] as f64 - c[k] as f64) * fx;
@@ -339,22 +419,35 @@ mod tests {
 
     fn random_coefficients(j: usize, seed: u64) -> [Vec<f64>; 3] {
         let mut rng = Rng::new(seed);
-        std::array::from_fn(|_| (0..j).map(|_| if rng.next_f64() < 0.3 { rng.next_f64() } else { 0.0 }).collect())
+        std::array::from_fn(|_| {
+            (0..j)
+                .map(|_| {
+                    if rng.next_f64() < 0.3 {
+                        rng.next_f64()
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
     }
 
     #[test]
     fn level_zero_matches_the_lobe_sum() {
-        // Bilinear interpolation at the default resolution against the exact sum, at random half-vectors
-        // where p is not negligible: relative error ≤ 0.5 % (measured worst printed).
+        // Bilinear interpolation at the default resolution against the exact sum, at random
+        // half-vectors where p is not negligible: relative error ≤ 0.5 % (measured worst printed).
         for layout in [LobeLayout::PAPER, LobeLayout::Isotropic { count: 24 }] {
-            let lobes = LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+            let lobes =
+                LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
             let c = random_coefficients(lobes.len(), 5);
             let cr = [c[0].as_slice(), c[1].as_slice(), c[2].as_slice()];
             let table = PhTable::build(&lobes, cr, default_resolution(lobes.lambda()));
             let mut rng = Rng::new(9);
-            let peak = (0..2000).map(|_| lobes.p(&c[0], rng.hemisphere_vector())).fold(0.0f64, f64::max);
-            // Error relative to the peak (what a render sees), and relative to the value where p is at
-            // least half its peak.
+            let peak = (0..2000)
+                .map(|_| lobes.p(&c[0], rng.hemisphere_vector()))
+                .fold(0.0f64, f64::max);
+            // Error relative to the peak (what a render sees), and relative to the value where p is
+            // at least half its peak.
             let (mut worst_peak, mut worst_half) = (0.0f64, 0.0f64);
             for _ in 0..20_000 {
                 let h = rng.hemisphere_vector();
@@ -367,58 +460,114 @@ mod tests {
                     }
                 }
             }
-            println!("{}: R = {}, worst error {worst_peak:.2e} of the peak, {worst_half:.2e} relative where p > peak/2", layout.name(), table.resolution());
-            // Measured at R = 256: hemicube 8.3e-3 of the peak, 1.3e-2 relative near peaks (bilinear
-            // flattens the lobes' tops where the map's texels are widest); renders average this down
-            // to < 0.1 % (tests/render.rs).
-            assert!(worst_peak < 1e-2 && worst_half < 1.5e-2, "{}: {worst_peak} {worst_half}", layout.name());
+            println!(
+                "{}: R = {}, worst error {worst_peak:.2e} of the peak, {worst_half:.2e} relative where p > peak/2",
+                layout.name(),
+                table.resolution()
+            );
+            // Measured at R = 256: hemicube 8.3e-3 of the peak, 1.3e-2 relative near peaks
+            // (bilinear flattens the lobes' tops where the map's texels are widest); renders
+            // average this down to < 0.1 % (tests/render.rs).
+            assert!(
+                worst_peak < 1e-2 && worst_half < 1.5e-2,
+                "{}: {worst_peak} {worst_half}",
+                layout.name()
+            );
         }
     }
 
     #[test]
     fn isotropic_profile_equals_texel_by_texel_sums() {
         // The polar-angle profile against summing the lobes at every texel, on every level.
-        let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+        let lobes = LobeSet::new(
+            LobeLayout::Isotropic { count: 24 },
+            srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
+        )
+        .unwrap();
         let c = random_coefficients(lobes.len(), 11);
         let cr = [c[0].as_slice(), c[1].as_slice(), c[2].as_slice()];
-        let active: Vec<usize> = (0..lobes.len()).filter(|&j| c.iter().any(|ch| ch[j] > 0.0)).collect();
+        let active: Vec<usize> = (0..lobes.len())
+            .filter(|&j| c.iter().any(|ch| ch[j] > 0.0))
+            .collect();
         for (level, factor) in [(0, 1.0f64), (3, 2f64.powf(1.5)), (9, 2f64.powf(4.5))] {
             let lambda_l = lobes.lambda() / factor;
             let res = ((256.0 / factor.sqrt()).round() as usize).max(16);
-            let fast = tabulate_isotropic(&lobes, &active, cr, lambda_l, lambda_l / lobes.lambda(), res);
-            let direct = tabulate_direct(&lobes, &active, cr, lambda_l, lambda_l / lobes.lambda(), res);
-            let peak = direct.texels.iter().flatten().fold(0.0f32, |a, b| a.max(*b));
-            let worst = fast.texels.iter().zip(&direct.texels).flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs())).fold(0.0f32, f32::max);
-            println!("level {level}: R = {res}, worst {:.2e} of the peak {peak:.3}", worst / peak);
-            assert!(peak > 0.0 && worst <= 2e-5 * peak, "level {level}: {worst} of {peak}");
+            let fast = tabulate_isotropic(
+                &lobes,
+                &active,
+                cr,
+                lambda_l,
+                lambda_l / lobes.lambda(),
+                res,
+            );
+            let direct = tabulate_direct(
+                &lobes,
+                &active,
+                cr,
+                lambda_l,
+                lambda_l / lobes.lambda(),
+                res,
+            );
+            let peak = direct
+                .texels
+                .iter()
+                .flatten()
+                .fold(0.0f32, |a, b| a.max(*b));
+            let worst = fast
+                .texels
+                .iter()
+                .zip(&direct.texels)
+                .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+                .fold(0.0f32, f32::max);
+            println!(
+                "level {level}: R = {res}, worst {:.2e} of the peak {peak:.3}",
+                worst / peak
+            );
+            assert!(
+                peak > 0.0 && worst <= 2e-5 * peak,
+                "level {level}: {worst} of {peak}"
+            );
         }
     }
 
     #[test]
     fn profile_lookups_match_the_lobe_sum_and_the_texel_lookups() {
-        let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+        let lobes = LobeSet::new(
+            LobeLayout::Isotropic { count: 24 },
+            srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
+        )
+        .unwrap();
         let c = random_coefficients(lobes.len(), 21);
         let cr = [c[0].as_slice(), c[1].as_slice(), c[2].as_slice()];
         let table = PhTable::build(&lobes, cr, default_resolution(lobes.lambda()));
         assert!(table.has_profile());
         let mut rng = Rng::new(3);
-        let peak = (0..2000).map(|_| rng.hemisphere_vector()).flat_map(|h| c.iter().map(move |ch| (ch, h))).map(|(ch, h)| lobes.p(ch, h)).fold(0.0f64, f64::max);
+        let peak = (0..2000)
+            .map(|_| rng.hemisphere_vector())
+            .flat_map(|h| c.iter().map(move |ch| (ch, h)))
+            .map(|(ch, h)| lobes.p(ch, h))
+            .fold(0.0f64, f64::max);
         let (mut vs_exact, mut vs_texels) = (0.0f64, 0.0f64);
         for k in 0..20_000 {
             let h = rng.hemisphere_vector();
             // Unfiltered: the profile against the closed form.
             let got = table.lookup_profile_filtered(h, 0.0).unwrap();
             let want = filtered_exact(&lobes, cr, h, 0.0);
-            // Filtered: the same levels and blend as the texel lookup, so they differ by the texels'
-            // bilinear error only.
+            // Filtered: the same levels and blend as the texel lookup, so they differ by the
+            // texels' bilinear error only.
             let spread = [1e-4, 1e-3, 1e-2][k % 3];
-            let (p, t) = (table.lookup_profile_filtered(h, spread).unwrap(), table.lookup_filtered(h, spread));
+            let (p, t) = (
+                table.lookup_profile_filtered(h, spread).unwrap(),
+                table.lookup_filtered(h, spread),
+            );
             for ch in 0..3 {
                 vs_exact = vs_exact.max((got[ch] - want[ch]).abs() / peak);
                 vs_texels = vs_texels.max((p[ch] - t[ch]).abs() / peak);
             }
         }
-        println!("profile: worst {vs_exact:.2e} of the peak against the lobe sum, {vs_texels:.2e} against the texel lookups");
+        println!(
+            "profile: worst {vs_exact:.2e} of the peak against the lobe sum, {vs_texels:.2e} against the texel lookups"
+        );
         // Measured: 1.05e-5 and 1.23e-3 (the texels' bilinear error near the pole).
         assert!(vs_exact < 3e-5, "{vs_exact}");
         assert!(vs_texels < 2.5e-3, "{vs_texels}");
@@ -434,11 +583,15 @@ mod tests {
         let lambda = srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap();
         let lobes = LobeSet::new(LobeLayout::PAPER, lambda).unwrap();
         let mut c = vec![0.0; lobes.len()];
-        let top = (0..lobes.len()).max_by(|&a, &b| lobes.centres()[a].z.total_cmp(&lobes.centres()[b].z)).unwrap();
+        let top = (0..lobes.len())
+            .max_by(|&a, &b| lobes.centres()[a].z.total_cmp(&lobes.centres()[b].z))
+            .unwrap();
         c[top] = 1.0; // the lobe nearest the pole
         let cr = [c.as_slice(), c.as_slice(), c.as_slice()];
         let table = PhTable::build(&lobes, cr, 256);
-        let top = (0..lobes.len()).max_by(|&a, &b| lobes.centres()[a].z.total_cmp(&lobes.centres()[b].z)).unwrap();
+        let top = (0..lobes.len())
+            .max_by(|&a, &b| lobes.centres()[a].z.total_cmp(&lobes.centres()[b].z))
+            .unwrap();
         let xi = lobes.centres()[top];
         let frame = crate::sphere::Frame::from_normal(xi);
         let mut rng = Rng::new(1);
@@ -447,7 +600,8 @@ mod tests {
                 let a = offset_deg.to_radians();
                 let h = frame.to_world(DVec3::new(a.sin(), 0.0, a.cos()));
                 let around_h = crate::sphere::Frame::from_normal(h);
-                // Monte Carlo: the lobe averaged under a Gaussian tangent-plane jitter of variance `spread`.
+                // Monte Carlo: the lobe averaged under a Gaussian tangent-plane jitter of variance
+                // `spread`.
                 let n = 200_000;
                 let mut sum = 0.0;
                 for _ in 0..n {
@@ -459,11 +613,20 @@ mod tests {
                 let mc = sum / n as f64;
                 let exact = filtered_exact(&lobes, cr, h, spread)[0];
                 let tab = table.lookup_filtered(h, spread)[0];
-                println!("spread {spread:.0e} offset {offset_deg}°: MC {mc:.5}, closed form {exact:.5}, table {tab:.5}");
-                // The closed form is a small-angle approximation: within 3 % of the true average (or
-                // 1e-3 absolute where both are tiny); the table follows the closed form within 3 %.
-                assert!((exact - mc).abs() <= 0.03 * mc + 1e-3, "closed form {exact} vs MC {mc}");
-                assert!((tab - exact).abs() <= 0.03 * exact + 1e-3, "table {tab} vs closed form {exact}");
+                println!(
+                    "spread {spread:.0e} offset {offset_deg}°: MC {mc:.5}, closed form {exact:.5}, table {tab:.5}"
+                );
+                // The closed form is a small-angle approximation: within 3 % of the true average
+                // (or 1e-3 absolute where both are tiny); the table follows the closed form within
+                // 3 %.
+                assert!(
+                    (exact - mc).abs() <= 0.03 * mc + 1e-3,
+                    "closed form {exact} vs MC {mc}"
+                );
+                assert!(
+                    (tab - exact).abs() <= 0.03 * exact + 1e-3,
+                    "table {tab} vs closed form {exact}"
+                );
             }
         }
     }

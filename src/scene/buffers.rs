@@ -5,13 +5,14 @@
 //!
 //! Invariants:
 //! * a buffer without `uri` is the GLB BIN chunk; `data:` URIs are decoded (base64 or
-//!   percent-encoded); every other URI must be a relative path, which is percent-decoded and resolved
-//!   against the scene file's folder;
+//!   percent-encoded); every other URI must be a relative path, which is percent-decoded and
+//!   resolved against the scene file's folder;
 //! * **reading a glTF never touches files outside its folder**: absolute paths (`/…`, `\…`, drive
 //!   letters) and other schemes (`http:`, `file:`, …) are refused without touching the file system;
 //!   a path whose `..` components climb above the folder is refused before any file-system call; a
 //!   path that exists is canonicalised and refused unless it lies inside the canonicalised folder
-//!   (symlinks pointing out); only then is the file opened, and at most `byteLength` bytes are read;
+//!   (symlinks pointing out); only then is the file opened, and at most `byteLength` bytes are
+//!   read;
 //! * data shorter than the declared `byteLength` is [`ImportError::BufferTooShort`].
 
 use std::io::Read;

@@ -1,5 +1,5 @@
-//! Cameras and bounds: the [`Camera`] and [`Bounds`] types, [`orbit_camera`], and conversion of glTF
-//! perspective cameras.
+//! Cameras and bounds: the [`Camera`] and [`Bounds`] types, [`orbit_camera`], and conversion of
+//! glTF perspective cameras.
 //!
 //! Inputs: bounds of the baked mesh, or a glTF camera and its node's world matrix. Outputs:
 //! [`Camera`] values.

@@ -6,27 +6,35 @@
 //! interpolate them across a triangle — normals and tangents normalised, UVs linear, handedness
 //! kept from the first end.
 //!
-//! [`split_edges`] splits only chosen edges (the bake's adaptive refinement, where visibility changes
-//! across an edge), conformingly, so no T-junction is left.
+//! [`split_edges`] splits only chosen edges (the bake's adaptive refinement, where visibility
+//! changes across an edge), conformingly, so no T-junction is left.
 //!
 //! Inputs: a [`Mesh`]. Output: a [`Mesh`] with V + E vertices and 4T triangles (or, for
-//! [`split_edges`], one more vertex per chosen edge); the first V vertices are the input's, in order. Invariants: deterministic (new vertices in order of first use); no IO.
+//! [`split_edges`], one more vertex per chosen edge); the first V vertices are the input's, in
+//! order. Invariants: deterministic (new vertices in order of first use); no IO.
 
 use super::Mesh;
 use glam::{Vec3, Vec4};
 use std::collections::HashMap;
 
 /// The point on the smooth surface the vertex normals describe, above a point `position` of a flat
-/// triangle with barycentrics `corners` ((vertex, weight), weights summing to 1) (Hanika, "Hacking the
-/// shadow terminator", Ray Tracing Gems II, ch. 4): the point is projected onto each corner's tangent
-/// plane where it lies below it, and the projections are blended by the weights. Where the mesh is
-/// convex this lifts the point off the facet, so rays above the shading normal's horizon do not hit
-/// the facet they start from; where it is concave it stays. The Monte Carlo reference starts its rays
-/// there, and the bake traces a refined mesh's midpoints from there.
-pub fn smooth_surface_point(mesh: &Mesh, corners: &[(u32, f64)], position: glam::DVec3) -> glam::DVec3 {
+/// triangle with barycentrics `corners` ((vertex, weight), weights summing to 1) (Hanika, "Hacking
+/// the shadow terminator", Ray Tracing Gems II, ch. 4): the point is projected onto each corner's
+/// tangent plane where it lies below it, and the projections are blended by the weights. Where the
+/// mesh is convex this lifts the point off the facet, so rays above the shading normal's horizon do
+/// not hit the facet they start from; where it is concave it stays. The Monte Carlo reference
+/// starts its rays there, and the bake traces a refined mesh's midpoints from there.
+pub fn smooth_surface_point(
+    mesh: &Mesh,
+    corners: &[(u32, f64)],
+    position: glam::DVec3,
+) -> glam::DVec3 {
     let mut lifted = position;
     for &(v, w) in corners {
-        let (Some(p), Some(n)) = (mesh.positions.get(v as usize), mesh.normals.get(v as usize)) else { continue };
+        let (Some(p), Some(n)) = (mesh.positions.get(v as usize), mesh.normals.get(v as usize))
+        else {
+            continue;
+        };
         let n = n.as_dvec3().try_normalize().unwrap_or(glam::DVec3::ZERO);
         let below = (position - p.as_dvec3()).dot(n).min(0.0);
         lifted -= w * below * n;
@@ -34,13 +42,16 @@ pub fn smooth_surface_point(mesh: &Mesh, corners: &[(u32, f64)], position: glam:
     lifted
 }
 
-/// Appends the midpoint of edge (a, b) to `mesh` (position halfway, normal and tangent the normalised
-/// sums, UV halfway, handedness from `a`) and returns its index. `a` and `b` must be vertices of `mesh`.
+/// Appends the midpoint of edge (a, b) to `mesh` (position halfway, normal and tangent the
+/// normalised sums, UV halfway, handedness from `a`) and returns its index. `a` and `b` must be
+/// vertices of `mesh`.
 pub fn push_midpoint(mesh: &mut Mesh, a: u32, b: u32) -> u32 {
     let (i, j) = (a as usize, b as usize);
-    mesh.positions.push((mesh.positions[i] + mesh.positions[j]) * 0.5);
+    mesh.positions
+        .push((mesh.positions[i] + mesh.positions[j]) * 0.5);
     let n = (mesh.normals[i] + mesh.normals[j]).normalize_or_zero();
-    mesh.normals.push(if n == Vec3::ZERO { mesh.normals[i] } else { n });
+    mesh.normals
+        .push(if n == Vec3::ZERO { mesh.normals[i] } else { n });
     if let Some(t) = mesh.tangents.as_mut() {
         let (ti, tj) = (t[i], t[j]);
         let xyz = (ti.truncate() + tj.truncate()).normalize_or_zero();
@@ -54,25 +65,35 @@ pub fn push_midpoint(mesh: &mut Mesh, a: u32, b: u32) -> u32 {
 
 /// One level of midpoint subdivision.
 pub fn subdivide_midpoint(mesh: &Mesh) -> Mesh {
-    let mut out = Mesh { positions: mesh.positions.clone(), normals: mesh.normals.clone(), tangents: mesh.tangents.clone(), uvs: mesh.uvs.clone(), triangles: Vec::with_capacity(mesh.triangles.len() * 4) };
-    let mut midpoints: HashMap<(u32, u32), u32> = HashMap::with_capacity(mesh.triangles.len() * 3 / 2);
+    let mut out = Mesh {
+        positions: mesh.positions.clone(),
+        normals: mesh.normals.clone(),
+        tangents: mesh.tangents.clone(),
+        uvs: mesh.uvs.clone(),
+        triangles: Vec::with_capacity(mesh.triangles.len() * 4),
+    };
+    let mut midpoints: HashMap<(u32, u32), u32> =
+        HashMap::with_capacity(mesh.triangles.len() * 3 / 2);
     let mut midpoint = |out: &mut Mesh, a: u32, b: u32| -> u32 {
         let key = (a.min(b), a.max(b));
-        *midpoints.entry(key).or_insert_with(|| push_midpoint(out, key.0, key.1))
+        *midpoints
+            .entry(key)
+            .or_insert_with(|| push_midpoint(out, key.0, key.1))
     };
     for &[a, b, c] in &mesh.triangles {
         let ab = midpoint(&mut out, a, b);
         let bc = midpoint(&mut out, b, c);
         let ca = midpoint(&mut out, c, a);
-        out.triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        out.triangles
+            .extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
     }
     out
 }
 
-/// Splits the edges `split` says to split (keyed (min, max) of the end vertices), conformingly: a triangle
-/// with one such edge becomes two, with two becomes three (the new diagonal is the shorter one), with
-/// three becomes four. New vertices are appended in order of first use, each the midpoint of its edge
-/// ([`push_midpoint`]); returns their edges (min, max). Orientation is kept.
+/// Splits the edges `split` says to split (keyed (min, max) of the end vertices), conformingly: a
+/// triangle with one such edge becomes two, with two becomes three (the new diagonal is the shorter
+/// one), with three becomes four. New vertices are appended in order of first use, each the
+/// midpoint of its edge ([`push_midpoint`]); returns their edges (min, max). Orientation is kept.
 pub fn split_edges(mesh: &mut Mesh, split: &impl Fn(u32, u32) -> bool) -> Vec<[u32; 2]> {
     let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
     let mut parents = Vec::new();
@@ -135,9 +156,20 @@ mod tests {
         assert_eq!((s.positions.len(), s.triangles.len()), (9, 8));
         assert_eq!(&s.positions[..4], &mesh.positions[..]);
         // Area is kept and every new vertex lies on an old edge's midpoint.
-        let area = |m: &Mesh| -> f32 { m.triangles.iter().map(|t| (m.positions[t[1] as usize] - m.positions[t[0] as usize]).cross(m.positions[t[2] as usize] - m.positions[t[0] as usize]).length() * 0.5).sum() };
+        let area = |m: &Mesh| -> f32 {
+            m.triangles
+                .iter()
+                .map(|t| {
+                    (m.positions[t[1] as usize] - m.positions[t[0] as usize])
+                        .cross(m.positions[t[2] as usize] - m.positions[t[0] as usize])
+                        .length()
+                        * 0.5
+                })
+                .sum()
+        };
         assert!((area(&s) - area(&mesh)).abs() < 1e-6);
-        // Every edge of the result is used by at most two triangles (watertight where the input was).
+        // Every edge of the result is used by at most two triangles (watertight where the input
+        // was).
         let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
         for t in &s.triangles {
             for k in 0..3 {
@@ -146,6 +178,10 @@ mod tests {
             }
         }
         assert!(uses.values().all(|&u| u <= 2));
-        assert_eq!(uses.values().filter(|&&u| u == 2).count(), 8, "16 edges (Euler, a disc: V − E + F = 1), 8 on the boundary");
+        assert_eq!(
+            uses.values().filter(|&&u| u == 2).count(),
+            8,
+            "16 edges (Euler, a disc: V − E + F = 1), 8 on the boundary"
+        );
     }
 }

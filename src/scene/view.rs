@@ -24,27 +24,52 @@ pub enum ViewError {
     SizeRange(u32, u32),
 }
 
-/// The camera named, an orbit (azimuth°, elevation°, distance in bounding radii), or the scene's first
-/// camera; the image size is the scene's first camera's (640×480 without one).
-pub fn pick_view(scene: &Scene, name: Option<&str>, orbit: Option<&[f32]>) -> Result<Camera, ViewError> {
+/// The camera named, an orbit (azimuth°, elevation°, distance in bounding radii), or the scene's
+/// first camera; the image size is the scene's first camera's (640×480 without one).
+pub fn pick_view(
+    scene: &Scene,
+    name: Option<&str>,
+    orbit: Option<&[f32]>,
+) -> Result<Camera, ViewError> {
     if let Some(o) = orbit {
-        let &[az, el, dist] = o else { return Err(ViewError::Orbit) };
-        let (w, h) = scene.cameras.first().map_or((640, 480), |c| (c.width, c.height));
+        let &[az, el, dist] = o else {
+            return Err(ViewError::Orbit);
+        };
+        let (w, h) = scene
+            .cameras
+            .first()
+            .map_or((640, 480), |c| (c.width, c.height));
         return Ok(orbit_camera(&scene.bounds, az, el, dist, w, h));
     }
     match name {
-        Some(n) => scene.cameras.iter().find(|c| c.name == n).cloned().ok_or_else(|| ViewError::UnknownCamera {
-            name: n.to_string(),
-            available: scene.cameras.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", "),
-        }),
+        Some(n) => scene
+            .cameras
+            .iter()
+            .find(|c| c.name == n)
+            .cloned()
+            .ok_or_else(|| ViewError::UnknownCamera {
+                name: n.to_string(),
+                available: scene
+                    .cameras
+                    .iter()
+                    .map(|c| c.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            }),
         None => scene.cameras.first().cloned().ok_or(ViewError::NoCamera),
     }
 }
 
 /// "WxH" → (W, H), both in 1..=8192.
 pub fn parse_size(s: &str) -> Result<(u32, u32), ViewError> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| ViewError::SizeFormat(s.to_string()))?;
-    let number = |t: &str| t.trim().parse::<u32>().map_err(|e| ViewError::SizeNumber(s.to_string(), e));
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| ViewError::SizeFormat(s.to_string()))?;
+    let number = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .map_err(|e| ViewError::SizeNumber(s.to_string(), e))
+    };
     let (w, h) = (number(w)?, number(h)?);
     if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
         return Err(ViewError::SizeRange(w, h));
@@ -55,7 +80,12 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), ViewError> {
 /// The camera `glint render` and `glint export` use, with its image size: [`pick_view`], else (no
 /// camera and no orbit asked for) the default camera; `size` overrides the camera's own; the aspect
 /// follows the image.
-pub fn render_view(scene: &Scene, camera: Option<&str>, orbit: Option<&[f32]>, size: Option<&str>) -> Result<(Camera, u32, u32), ViewError> {
+pub fn render_view(
+    scene: &Scene,
+    camera: Option<&str>,
+    orbit: Option<&[f32]>,
+    size: Option<&str>,
+) -> Result<(Camera, u32, u32), ViewError> {
     let mut cam = match pick_view(scene, camera, orbit) {
         Ok(c) => c,
         Err(_) if camera.is_none() && orbit.is_none() => default_camera(&scene.bounds),

@@ -1,9 +1,9 @@
 //! The fine, uniform direction set on the sphere: the texels of a cube map with exact solid angles.
 //!
-//! Inputs: the resolution n (texels per cube-face side). Outputs: 6·n² unit directions (texel centres)
-//! and their exact solid angles. Invariants: the solid angles are positive and sum to 4π within 1e-12
-//! (they are exact spherical-quad areas, not cos³ approximations); texel order is face-major, then row,
-//! then column.
+//! Inputs: the resolution n (texels per cube-face side). Outputs: 6·n² unit directions (texel
+//! centres) and their exact solid angles. Invariants: the solid angles are positive and sum to 4π
+//! within 1e-12 (they are exact spherical-quad areas, not cos³ approximations); texel order is
+//! face-major, then row, then column.
 //!
 //! Faces (OpenGL cube-map convention), with s, t ∈ [−1, 1] the face coordinates (column, row):
 //! 0 +X: (1, −t, −s) · 1 −X: (−1, −t, s) · 2 +Y: (s, 1, t) · 3 −Y: (s, −1, −t) · 4 +Z: (s, −t, 1) ·
@@ -52,7 +52,12 @@ impl DirectionSet {
                 }
             }
         }
-        Ok(Self { resolution, directions, solid_angles, moments })
+        Ok(Self {
+            resolution,
+            directions,
+            solid_angles,
+            moments,
+        })
     }
 
     /// Texels per face side.
@@ -80,8 +85,8 @@ impl DirectionSet {
         &self.solid_angles
     }
 
-    /// Exact texel moments ∫_texel ω dω (Arvo's formula): for any unit n with the whole texel above the
-    /// plane, ∫_texel max(ω·n, 0) dω = moment·n exactly.
+    /// Exact texel moments ∫_texel ω dω (Arvo's formula): for any unit n with the whole texel above
+    /// the plane, ∫_texel max(ω·n, 0) dω = moment·n exactly.
     pub fn moments(&self) -> &[DVec3] {
         &self.moments
     }
@@ -94,11 +99,16 @@ impl DirectionSet {
         let (row, col) = (rem / n, rem % n);
         let edge = |k: usize| -1.0 + 2.0 * k as f64 / n as f64;
         let (s0, s1, t0, t1) = (edge(col), edge(col + 1), edge(row), edge(row + 1));
-        [face_direction(face, s0, t0), face_direction(face, s1, t0), face_direction(face, s1, t1), face_direction(face, s0, t1)]
+        [
+            face_direction(face, s0, t0),
+            face_direction(face, s1, t0),
+            face_direction(face, s1, t1),
+            face_direction(face, s0, t1),
+        ]
     }
 
-    /// Direction at fractional position (a, b) ∈ [0, 1]² inside texel `index` (a along the row, b down
-    /// the column); (0.5, 0.5) is the centre. Used to supersample an environment over a texel.
+    /// Direction at fractional position (a, b) ∈ [0, 1]² inside texel `index` (a along the row, b
+    /// down the column); (0.5, 0.5) is the centre. Used to supersample an environment over a texel.
     pub fn texel_point(&self, index: usize, a: f64, b: f64) -> DVec3 {
         let n = self.resolution;
         let face = index / (n * n);
@@ -109,9 +119,9 @@ impl DirectionSet {
         face_direction(face.min(5), s, t)
     }
 
-    /// A k×k grid of sample directions inside texel `index` with weights proportional to the solid angle
-    /// each stands for (the cube-face Jacobian 1/(1 + s² + t²)^(3/2)), normalised to sum to 1. Used to
-    /// integrate an environment over a texel.
+    /// A k×k grid of sample directions inside texel `index` with weights proportional to the solid
+    /// angle each stands for (the cube-face Jacobian 1/(1 + s² + t²)^(3/2)), normalised to sum to
+    /// 1. Used to integrate an environment over a texel.
     pub fn texel_samples(&self, index: usize, k: usize) -> impl Iterator<Item = (DVec3, f64)> + '_ {
         let n = self.resolution;
         let k = k.max(1);
@@ -149,7 +159,9 @@ impl DirectionSet {
     pub fn texel_of(&self, d: DVec3) -> usize {
         let n = self.resolution;
         let (face, s, t) = direction_to_face(d);
-        let to_index = |x: f64| (((x + 1.0) * 0.5 * n as f64).floor() as isize).clamp(0, n as isize - 1) as usize;
+        let to_index = |x: f64| {
+            (((x + 1.0) * 0.5 * n as f64).floor() as isize).clamp(0, n as isize - 1) as usize
+        };
         face * n * n + to_index(t) * n + to_index(s)
     }
 }
@@ -172,32 +184,48 @@ pub fn direction_to_face(d: DVec3) -> (usize, f64, f64) {
     let a = d.abs();
     if a.x >= a.y && a.x >= a.z {
         let m = a.x.max(f64::MIN_POSITIVE);
-        if d.x > 0.0 { (0, -d.z / m, -d.y / m) } else { (1, d.z / m, -d.y / m) }
+        if d.x > 0.0 {
+            (0, -d.z / m, -d.y / m)
+        } else {
+            (1, d.z / m, -d.y / m)
+        }
     } else if a.y >= a.z {
         let m = a.y.max(f64::MIN_POSITIVE);
-        if d.y > 0.0 { (2, d.x / m, d.z / m) } else { (3, d.x / m, -d.z / m) }
+        if d.y > 0.0 {
+            (2, d.x / m, d.z / m)
+        } else {
+            (3, d.x / m, -d.z / m)
+        }
     } else {
         let m = a.z.max(f64::MIN_POSITIVE);
-        if d.z > 0.0 { (4, d.x / m, -d.y / m) } else { (5, -d.x / m, -d.y / m) }
+        if d.z > 0.0 {
+            (4, d.x / m, -d.y / m)
+        } else {
+            (5, -d.x / m, -d.y / m)
+        }
     }
 }
 
 /// ∫ ω dω over the spherical polygon with unit corners `v` (great-circle edges), by Arvo's formula
-/// ½ Σ_i θ_i n̂_i (θ_i the edge's arc, n̂_i the unit normal of its plane), oriented towards `inside`.
+/// ½ Σ_i θ_i n̂_i (θ_i the edge's arc, n̂_i the unit normal of its plane), oriented towards
+/// `inside`.
 pub fn polygon_moment(v: &[DVec3], inside: DVec3) -> DVec3 {
     let mut m = DVec3::ZERO;
     for i in 0..v.len() {
         let (a, b) = (v[i], v[(i + 1) % v.len()]);
-        let Some(normal) = a.cross(b).try_normalize() else { continue };
+        let Some(normal) = a.cross(b).try_normalize() else {
+            continue;
+        };
         m += normal * a.dot(b).clamp(-1.0, 1.0).acos();
     }
     m *= 0.5;
     if m.dot(inside) < 0.0 { -m } else { m }
 }
 
-/// ∫ max(ω·n, 0) dω over the spherical polygon with unit corners `v` (great-circle edges): the polygon
-/// is clipped to the hemisphere ω·n ≥ 0 (the horizon is a great circle, so the clipped polygon still has
-/// great-circle edges) and the clipped moment is dotted with n. Exact for texels cut by the horizon.
+/// ∫ max(ω·n, 0) dω over the spherical polygon with unit corners `v` (great-circle edges): the
+/// polygon is clipped to the hemisphere ω·n ≥ 0 (the horizon is a great circle, so the clipped
+/// polygon still has great-circle edges) and the clipped moment is dotted with n. Exact for texels
+/// cut by the horizon.
 pub fn clipped_cosine_integral(v: &[DVec3; 4], n: DVec3) -> f64 {
     let mut clipped = [DVec3::ZERO; 8];
     let mut count = 0usize;
@@ -225,15 +253,18 @@ pub fn clipped_cosine_integral(v: &[DVec3; 4], n: DVec3) -> f64 {
 }
 
 /// ∫ max(ω·n, 0) dω over a small texel from its corner heights h_k = d_k·n: the texel as the two
-/// triangles (0, 1, 2) and (0, 2, 3), holding `split` and 1 − `split` of its solid angle `omega`, with
-/// ω·n linear on each (the mean of max(·, 0) of a linear function over a triangle is closed form). No
-/// transcendental functions: this is what the renderers evaluate for the ~2π/δ texels of width δ that
-/// every horizon cuts. Its error is second order in the texel's width — at most 1.04e-3 of Ω·max_k h_k
-/// for 1.4° texels (6×64², 20 random planes; the test allows 1.5e-3), against
-/// [`clipped_cosine_integral`], which is exact and stays the reference (the wgpu shader mirrors it).
+/// triangles (0, 1, 2) and (0, 2, 3), holding `split` and 1 − `split` of its solid angle `omega`,
+/// with ω·n linear on each (the mean of max(·, 0) of a linear function over a triangle is closed
+/// form). No transcendental functions: this is what the renderers evaluate for the ~2π/δ texels of
+/// width δ that every horizon cuts. Its error is second order in the texel's width — at most
+/// 1.04e-3 of Ω·max_k h_k for 1.4° texels (6×64², 20 random planes; the test allows 1.5e-3),
+/// against [`clipped_cosine_integral`], which is exact and stays the reference (the wgpu shader
+/// mirrors it).
 #[inline]
 pub fn clipped_cosine_linear(h: [f64; 4], omega: f64, split: f64) -> f64 {
-    omega * (split * triangle_mean_positive(h[0], h[1], h[2]) + (1.0 - split) * triangle_mean_positive(h[0], h[2], h[3]))
+    omega
+        * (split * triangle_mean_positive(h[0], h[1], h[2])
+            + (1.0 - split) * triangle_mean_positive(h[0], h[2], h[3]))
 }
 
 /// Mean of max(f, 0) over a triangle on which f is linear with vertex values a, b, c.
@@ -241,13 +272,20 @@ pub fn clipped_cosine_linear(h: [f64; 4], omega: f64, split: f64) -> f64 {
 fn triangle_mean_positive(a: f64, b: f64, c: f64) -> f64 {
     // Sort descending: a ≥ b ≥ c.
     let (a, b) = if a >= b { (a, b) } else { (b, a) };
-    let (a, b, c) = if b >= c { (a, b, c) } else if a >= c { (a, c, b) } else { (c, a, b) };
+    let (a, b, c) = if b >= c {
+        (a, b, c)
+    } else if a >= c {
+        (a, c, b)
+    } else {
+        (c, a, b)
+    };
     if c >= 0.0 {
         (a + b + c) / 3.0
     } else if a <= 0.0 {
         0.0
     } else if b <= 0.0 {
-        // Only a's corner is positive: a sub-triangle of area fraction a²/((a−b)(a−c)) with mean a/3.
+        // Only a's corner is positive: a sub-triangle of area fraction a²/((a−b)(a−c)) with mean
+        // a/3.
         a * a * a / (3.0 * (a - b) * (a - c))
     } else {
         // Only c's corner is negative: the whole mean minus the negative corner's part.
@@ -255,8 +293,8 @@ fn triangle_mean_positive(a: f64, b: f64, c: f64) -> f64 {
     }
 }
 
-/// The fraction of a texel's area in its triangle (0, 1, 2) of the split (0, 1, 2) + (0, 2, 3), from
-/// the planar triangles through its corners.
+/// The fraction of a texel's area in its triangle (0, 1, 2) of the split (0, 1, 2) + (0, 2, 3),
+/// from the planar triangles through its corners.
 pub fn triangle_split(c: &[DVec3; 4]) -> f64 {
     let a1 = (c[1] - c[0]).cross(c[2] - c[0]).length();
     let a2 = (c[2] - c[0]).cross(c[3] - c[0]).length();
@@ -292,13 +330,15 @@ mod tests {
 
     #[test]
     fn texel_solid_angle_matches_monte_carlo_area() {
-        // Independent check of one corner texel (the most distorted): fraction of uniform sphere samples
-        // falling in it, times 4π.
+        // Independent check of one corner texel (the most distorted): fraction of uniform sphere
+        // samples falling in it, times 4π.
         let set = DirectionSet::cube(4).unwrap();
         let index = 0; // face +X, row 0, col 0: a corner texel
         let mut rng = Rng::new(9);
         let samples = 2_000_000;
-        let hits = (0..samples).filter(|_| set.texel_of(rng.unit_vector()) == index).count();
+        let hits = (0..samples)
+            .filter(|_| set.texel_of(rng.unit_vector()) == index)
+            .count();
         let mc = 4.0 * PI * hits as f64 / samples as f64;
         let exact = set.solid_angles()[index];
         let std_err = 4.0 * PI * ((hits as f64).sqrt() / samples as f64);
@@ -307,8 +347,8 @@ mod tests {
 
     #[test]
     fn texel_moments_are_exact() {
-        // The moment of a texel against a fine Jacobian-weighted quadrature of the same texel, and the
-        // moments of the whole sphere cancelling.
+        // The moment of a texel against a fine Jacobian-weighted quadrature of the same texel, and
+        // the moments of the whole sphere cancelling.
         let set = DirectionSet::cube(4).unwrap();
         for index in [0, 5, 17, 60] {
             let k = 400;
@@ -317,14 +357,24 @@ mod tests {
                 m += d * w;
             }
             m *= set.solid_angles()[index];
-            assert!((m - set.moments()[index]).length() < 1e-6 * set.solid_angles()[index], "{m} vs {}", set.moments()[index]);
+            assert!(
+                (m - set.moments()[index]).length() < 1e-6 * set.solid_angles()[index],
+                "{m} vs {}",
+                set.moments()[index]
+            );
         }
         let total: DVec3 = set.moments().iter().copied().sum();
         assert!(total.length() < 1e-12);
-        // ∫ max(ω·n, 0) over the upper hemisphere of the +Y face-aligned n: π, summed from moments of the
-        // texels above the plane (the plane y = 0 runs along texel edges).
+        // ∫ max(ω·n, 0) over the upper hemisphere of the +Y face-aligned n: π, summed from moments
+        // of the texels above the plane (the plane y = 0 runs along texel edges).
         let n = DVec3::Y;
-        let e: f64 = set.moments().iter().zip(set.directions()).filter(|(_, d)| d.y > 0.0).map(|(m, _)| m.dot(n)).sum();
+        let e: f64 = set
+            .moments()
+            .iter()
+            .zip(set.directions())
+            .filter(|(_, d)| d.y > 0.0)
+            .map(|(m, _)| m.dot(n))
+            .sum();
         assert!((e - std::f64::consts::PI).abs() < 1e-12, "{e}");
     }
 
@@ -345,14 +395,17 @@ mod tests {
             }
             want *= set.solid_angles()[index];
             let got = clipped_cosine_integral(&set.texel_corners(index), n);
-            assert!((got - want).abs() < 2e-5 * set.solid_angles()[index], "{got} vs {want}");
+            assert!(
+                (got - want).abs() < 2e-5 * set.solid_angles()[index],
+                "{got} vs {want}"
+            );
         }
     }
 
     #[test]
     fn linear_clip_is_close_to_the_exact_clip_on_small_texels() {
-        // Every texel of a 6×64² set that a random plane cuts, against the exact polygon clip; the split
-        // is each texel's planar triangle-area fraction (what the light tree stores).
+        // Every texel of a 6×64² set that a random plane cuts, against the exact polygon clip; the
+        // split is each texel's planar triangle-area fraction (what the light tree stores).
         let set = DirectionSet::cube(64).unwrap();
         let mut rng = crate::math::Rng::new(5);
         let (mut worst, mut cut) = (0.0f64, 0);
@@ -385,7 +438,13 @@ mod tests {
         }
         // Complement: max(f, 0) − max(−f, 0) = f.
         let (a, b, c) = (0.4, 0.1, -0.2);
-        assert!((triangle_mean_positive(a, b, c) - triangle_mean_positive(-a, -b, -c) - (a + b + c) / 3.0).abs() < 1e-15);
+        assert!(
+            (triangle_mean_positive(a, b, c)
+                - triangle_mean_positive(-a, -b, -c)
+                - (a + b + c) / 3.0)
+                .abs()
+                < 1e-15
+        );
     }
 
     #[test]

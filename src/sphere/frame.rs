@@ -1,16 +1,16 @@
 //! Local shading frames.
 //!
-//! Convention (the project's, stated once here and repeated in the material JSON and the WGSL headers):
-//! local z = the shading normal n, local x = the tangent t, local y = the bitangent b = w · (n × t),
-//! with w = ±1 the glTF TANGENT handedness. Directions point away from the surface.
+//! Convention (the project's, stated once here and repeated in the material JSON and the WGSL
+//! headers): local z = the shading normal n, local x = the tangent t, local y = the bitangent b = w
+//! · (n × t), with w = ±1 the glTF TANGENT handedness. Directions point away from the surface.
 //!
 //! Two ways to build a frame:
 //! - [`Frame::from_normal_tangent`]: from glTF TANGENT (or MikkTSpace) data, Gram–Schmidt
-//!   orthogonalised against n; used when the scene has a tangent field, so an anisotropic p(h) means
-//!   the same thing everywhere on the surface.
+//!   orthogonalised against n; used when the scene has a tangent field, so an anisotropic p(h)
+//!   means the same thing everywhere on the surface.
 //! - [`Frame::from_normal`]: the documented fallback when there is no tangent field, Duff et al.,
-//!   "Building an Orthonormal Basis, Revisited" (JCGT 2017): continuous except across n.z = 0's sign
-//!   flip. Its tangent direction is arbitrary, so only isotropic lobes may be used with it.
+//!   "Building an Orthonormal Basis, Revisited" (JCGT 2017): continuous except across n.z = 0's
+//!   sign flip. Its tangent direction is arbitrary, so only isotropic lobes may be used with it.
 //!
 //! Invariants: the three axes are unit length and mutually orthogonal within 1e-12 for any unit n.
 
@@ -33,7 +33,11 @@ impl Frame {
         let b = n.x * n.y * a;
         let tangent = DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
         let bitangent = DVec3::new(b, sign + n.y * n.y * a, -n.y);
-        Self { tangent, bitangent, normal: n }
+        Self {
+            tangent,
+            bitangent,
+            normal: n,
+        }
     }
 
     /// Frame from a normal and a glTF tangent (xyz = direction, w = handedness ±1). Falls back to
@@ -47,7 +51,11 @@ impl Frame {
         }
         let t = t / len;
         let w = if handedness < 0.0 { -1.0 } else { 1.0 };
-        Self { tangent: t, bitangent: n.cross(t) * w, normal: n }
+        Self {
+            tangent: t,
+            bitangent: n.cross(t) * w,
+            normal: n,
+        }
     }
 
     /// (tangent, bitangent).
@@ -58,7 +66,11 @@ impl Frame {
     /// World → local (x = t, y = b, z = n).
     #[inline]
     pub fn to_local(&self, v: DVec3) -> DVec3 {
-        DVec3::new(v.dot(self.tangent), v.dot(self.bitangent), v.dot(self.normal))
+        DVec3::new(
+            v.dot(self.tangent),
+            v.dot(self.bitangent),
+            v.dot(self.normal),
+        )
     }
 
     /// Local → world.
@@ -70,7 +82,11 @@ impl Frame {
 
 fn normalize_or_z(n: DVec3) -> DVec3 {
     let len = n.length();
-    if len.is_finite() && len > 0.0 { n / len } else { DVec3::Z }
+    if len.is_finite() && len > 0.0 {
+        n / len
+    } else {
+        DVec3::Z
+    }
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
-//! The hemi-octahedral map of the upper hemisphere onto the unit square: the parameterisation of every
-//! p(h) table glint writes (renderers, the EXR export, the WGSL preview).
+//! The hemi-octahedral map of the upper hemisphere onto the unit square: the parameterisation of
+//! every p(h) table glint writes (renderers, the EXR export, the WGSL preview).
 //!
 //! Tables sample it on a corner-aligned grid: texel (x, y) of an R×R table sits at u = x/(R − 1),
 //! v = y/(R − 1), so the outer texels lie on the horizon. Decoding: a = 2u − 1,
@@ -50,7 +50,14 @@ mod tests {
         }
         // The square's corners and edge midpoints lie on the horizon; its centre is the pole.
         assert!((decode(0.5, 0.5) - DVec3::Z).length() < 1e-15);
-        for (u, v) in [(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0), (0.5, 0.0), (0.0, 0.5)] {
+        for (u, v) in [
+            (0.0, 0.0),
+            (1.0, 1.0),
+            (0.0, 1.0),
+            (1.0, 0.0),
+            (0.5, 0.0),
+            (0.0, 0.5),
+        ] {
             assert!(decode(u, v).z.abs() < 1e-15, "({u}, {v})");
         }
     }

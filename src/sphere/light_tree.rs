@@ -1,15 +1,16 @@
 //! The direction set arranged in a binary tree (the "light tree" of visibility cuts, method.md §4).
 //!
 //! Inputs: a [`DirectionSet`]. Outputs: nodes in depth-first pre-order (root = 0), each covering a
-//! contiguous range of leaves in tree order, with its solid angle, solid-angle-weighted mean direction
-//! and bounding cone; and the permutation from tree order to direction-set index.
+//! contiguous range of leaves in tree order, with its solid angle, solid-angle-weighted mean
+//! direction and bounding cone; and the permutation from tree order to direction-set index.
 //!
 //! Build: recursive median split along the axis of largest extent of the range's directions (ties
 //! broken by texel index, so the tree is deterministic). The tree is balanced: depth ⌈log2(6n²)⌉.
 //!
-//! Invariants: every node's solid angle is the sum of its leaves' (computed bottom-up as left + right);
-//! leaves are contiguous per node, so any node's sum of a per-leaf quantity is a difference of prefix
-//! sums over tree order; mean directions are unit; `cone_cos` bounds every leaf centre of the node.
+//! Invariants: every node's solid angle is the sum of its leaves' (computed bottom-up as left +
+//! right); leaves are contiguous per node, so any node's sum of a per-leaf quantity is a difference
+//! of prefix sums over tree order; mean directions are unit; `cone_cos` bounds every leaf centre of
+//! the node.
 
 use super::DirectionSet;
 use glam::DVec3;
@@ -31,8 +32,8 @@ pub struct TreeNode {
     pub solid_angle: f64,
     /// normalize(moment): the node's mean direction.
     pub mean_direction: DVec3,
-    /// Σ over the leaves of the exact texel moments ∫ ω dω: for a unit n with the node wholly above the
-    /// plane, ∫_node max(ω·n, 0) dω = moment·n exactly.
+    /// Σ over the leaves of the exact texel moments ∫ ω dω: for a unit n with the node wholly above
+    /// the plane, ∫_node max(ω·n, 0) dω = moment·n exactly.
     pub moment: DVec3,
     /// min over leaves of d_i · mean_direction: the node's bounding cone (of leaf centres).
     pub cone_cos: f64,
@@ -46,17 +47,23 @@ impl TreeNode {
         self.left == NO_CHILD
     }
 
-    /// The node's bounding cone against the horizon of unit `n`: (the largest cosine to n inside the
-    /// cone, whether every direction of the cone is above the horizon). β = angle(mean direction, n),
-    /// α = the cone's half-angle, all in cosines and sines (no acos): the largest cosine is cos(β − α)
-    /// when β ≥ α (else the cone holds n), and the cone is wholly above when β + α < π/2.
+    /// The node's bounding cone against the horizon of unit `n`: (the largest cosine to n inside
+    /// the cone, whether every direction of the cone is above the horizon). β = angle(mean
+    /// direction, n), α = the cone's half-angle, all in cosines and sines (no acos): the largest
+    /// cosine is cos(β − α) when β ≥ α (else the cone holds n), and the cone is wholly above when β
+    /// + α < π/2.
     #[inline]
     pub fn horizon(&self, n: DVec3) -> (f64, bool) {
         let cos_b = self.mean_direction.dot(n).clamp(-1.0, 1.0);
         let sin_b = (1.0 - cos_b * cos_b).max(0.0).sqrt();
         let (cos_a, sin_a) = (self.cone_cos.clamp(-1.0, 1.0), self.cone_sin);
-        let max_cos = if cos_b <= cos_a { cos_b * cos_a + sin_b * sin_a } else { 1.0 };
-        let wholly_above = cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
+        let max_cos = if cos_b <= cos_a {
+            cos_b * cos_a + sin_b * sin_a
+        } else {
+            1.0
+        };
+        let wholly_above =
+            cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
         (max_cos, wholly_above)
     }
 }
@@ -87,20 +94,47 @@ impl LightTree {
         let mut depth = 0;
         build_node(&mut nodes, &mut order, 0, set, 0, &mut depth);
         let leaf_directions = order.iter().map(|&i| dirs[i as usize]).collect();
-        let leaf_solid_angles = order.iter().map(|&i| set.solid_angles()[i as usize]).collect();
+        let leaf_solid_angles = order
+            .iter()
+            .map(|&i| set.solid_angles()[i as usize])
+            .collect();
         let leaf_moments = order.iter().map(|&i| set.moments()[i as usize]).collect();
-        let leaf_corners: Vec<[DVec3; 4]> = order.iter().map(|&i| set.texel_corners(i as usize)).collect();
+        let leaf_corners: Vec<[DVec3; 4]> = order
+            .iter()
+            .map(|&i| set.texel_corners(i as usize))
+            .collect();
         let corner_cones = nodes
             .iter()
             .map(|node| {
                 let axis = node.mean_direction;
                 let range = node.first as usize..(node.first + node.count) as usize;
-                let cos = leaf_corners[range].iter().flatten().map(|d| d.dot(axis)).fold(1.0f64, f64::min);
-                PartitionCone { axis, cos, sin: (1.0 - cos * cos).max(0.0).sqrt() }
+                let cos = leaf_corners[range]
+                    .iter()
+                    .flatten()
+                    .map(|d| d.dot(axis))
+                    .fold(1.0f64, f64::min);
+                PartitionCone {
+                    axis,
+                    cos,
+                    sin: (1.0 - cos * cos).max(0.0).sqrt(),
+                }
             })
             .collect();
-        let leaf_splits = leaf_corners.iter().map(super::direction_set::triangle_split).collect();
-        Self { nodes, leaf_moments, leaf_corners, leaf_texel: order, leaf_directions, leaf_solid_angles, corner_cones, leaf_splits, depth }
+        let leaf_splits = leaf_corners
+            .iter()
+            .map(super::direction_set::triangle_split)
+            .collect();
+        Self {
+            nodes,
+            leaf_moments,
+            leaf_corners,
+            leaf_texel: order,
+            leaf_directions,
+            leaf_solid_angles,
+            corner_cones,
+            leaf_splits,
+            depth,
+        }
     }
 
     /// All nodes, pre-order; index 0 is the root.
@@ -143,8 +177,8 @@ impl LightTree {
         self.depth
     }
 
-    /// The partition of the sphere into the largest nodes whose leaf-centre cone half-angle is at most
-    /// `max_half_angle` (radians; leaves always qualify), in leaf order.
+    /// The partition of the sphere into the largest nodes whose leaf-centre cone half-angle is at
+    /// most `max_half_angle` (radians; leaves always qualify), in leaf order.
     pub fn partition(&self, max_half_angle: f64) -> Partition {
         let (mut ranges, mut nodes) = (Vec::new(), Vec::new());
         let mut stack = vec![0usize];
@@ -168,21 +202,29 @@ impl LightTree {
         &self.corner_cones[k]
     }
 
-    /// Splits the leaves [a, z) of node k's subtree against the plane ω·n = 0 by walking down the tree,
-    /// calling `visit(a', z', None)` for each sub-range whose texels lie wholly above the plane (for the
-    /// caller's prefix sums: ∫ max(ω·n, 0) dω over it is its moment · n exactly) and `visit(i, i + 1,
-    /// Some(c))` for each leaf the plane cuts, with c ≈ ∫_leaf max(ω·n, 0) dω by the linear rule
-    /// ([`clipped_cosine_linear`](super::direction_set::clipped_cosine_linear), within ~1e-3 of the
-    /// leaf's Ω·max cos, so ≲ 1e-5 of the irradiance); parts wholly below are skipped. Work is
-    /// proportional to the leaves the plane cuts (times the depth), not to the range's size. [a, z) must
-    /// lie inside node k.
+    /// Splits the leaves [a, z) of node k's subtree against the plane ω·n = 0 by walking down the
+    /// tree, calling `visit(a', z', None)` for each sub-range whose texels lie wholly above the
+    /// plane (for the caller's prefix sums: ∫ max(ω·n, 0) dω over it is its moment · n exactly) and
+    /// `visit(i, i + 1, Some(c))` for each leaf the plane cuts, with c ≈ ∫_leaf max(ω·n, 0) dω by
+    /// the linear rule ([`clipped_cosine_linear`](super::direction_set::clipped_cosine_linear),
+    /// within ~1e-3 of the leaf's Ω·max cos, so ≲ 1e-5 of the irradiance); parts wholly below are
+    /// skipped. Work is proportional to the leaves the plane cuts (times the depth), not to the
+    /// range's size. [a, z) must lie inside node k.
     ///
     /// `coarse_leaves` (≤ 1: off) stops the walk early: a node of at most that many leaves, wholly
-    /// inside [a, z), that the plane cuts is reported once as `visit(first, end, Some(c))` with c from
-    /// [`disc_clipped_cosine`] (its directions taken as a uniform disc of its solid angle around its
-    /// moment). The error is confined to the band of directions within the node's radius of the
-    /// horizon, where the cosine is small (measured in the tests below).
-    pub fn split_by_horizon(&self, k: usize, a: usize, z: usize, n: DVec3, coarse_leaves: u32, visit: &mut impl FnMut(usize, usize, Option<f64>)) {
+    /// inside [a, z), that the plane cuts is reported once as `visit(first, end, Some(c))` with c
+    /// from [`disc_clipped_cosine`] (its directions taken as a uniform disc of its solid angle
+    /// around its moment). The error is confined to the band of directions within the node's radius
+    /// of the horizon, where the cosine is small (measured in the tests below).
+    pub fn split_by_horizon(
+        &self,
+        k: usize,
+        a: usize,
+        z: usize,
+        n: DVec3,
+        coarse_leaves: u32,
+        visit: &mut impl FnMut(usize, usize, Option<f64>),
+    ) {
         // First down to the smallest node that holds the whole range (no cone tests on the way).
         let mut k = k;
         loop {
@@ -209,19 +251,25 @@ impl LightTree {
             top -= 1;
             let k = stack[top] as usize;
             let node = &self.nodes[k];
-            let (lo, hi) = ((node.first as usize).max(a), ((node.first + node.count) as usize).min(z));
+            let (lo, hi) = (
+                (node.first as usize).max(a),
+                ((node.first + node.count) as usize).min(z),
+            );
             if lo >= hi {
                 continue;
             }
             let cone = &self.corner_cones[k];
-            // A cone of half-angle β ≤ 90° around a lies wholly above the plane when the angle from a to
-            // n is under 90° − β, i.e. a·n > sin β, and wholly below when a·n < −sin β.
+            // A cone of half-angle β ≤ 90° around a lies wholly above the plane when the angle from
+            // a to n is under 90° − β, i.e. a·n > sin β, and wholly below when a·n < −sin β.
             let cb = cone.axis.dot(n);
             if cone.cos > 0.0 && cb > cone.sin {
                 visit(lo, hi, None);
             } else if cone.cos > 0.0 && cb < -cone.sin {
                 continue;
-            } else if node.count <= coarse_leaves && lo == node.first as usize && hi == (node.first + node.count) as usize {
+            } else if node.count <= coarse_leaves
+                && lo == node.first as usize
+                && hi == (node.first + node.count) as usize
+            {
                 let c = disc_clipped_cosine(node.solid_angle, node.moment.dot(n));
                 if c > 0.0 {
                     visit(lo, hi, Some(c));
@@ -231,7 +279,11 @@ impl LightTree {
                 if h.iter().all(|&x| x >= 0.0) {
                     visit(lo, hi, None);
                 } else {
-                    let c = super::direction_set::clipped_cosine_linear(h, self.leaf_solid_angles[lo], self.leaf_splits[lo]);
+                    let c = super::direction_set::clipped_cosine_linear(
+                        h,
+                        self.leaf_solid_angles[lo],
+                        self.leaf_splits[lo],
+                    );
                     if c > 0.0 {
                         visit(lo, hi, Some(c));
                     }
@@ -246,15 +298,15 @@ impl LightTree {
     }
 }
 
-/// The renderers' default for `split_by_horizon`'s `coarse_leaves` (see `render::prt::HORIZON_LEAVES`
-/// for what it costs and saves).
+/// The renderers' default for `split_by_horizon`'s `coarse_leaves` (see
+/// `render::prt::HORIZON_LEAVES` for what it costs and saves).
 pub const COARSE_HORIZON_LEAVES: u32 = 16;
 
 /// ∫ max(ω·n, 0) dω over a small set of directions of solid angle `omega` and moment `m·n` =
-/// `moment_n` (Σ Ω d · n), modelled as a uniform disc of radius β = √(Ω/π) on the tangent plane around
-/// the mean direction, at height t = moment_n / Ω above the horizon: with s = t/β,
-/// Ω β (s A(−s) + B(−s)), where A(u) = (2/π)(π/4 − (u√(1−u²) + asin u)/2) is the share of the disc
-/// above u and B(u) = (2/3π)(1 − u²)^{3/2} its first moment. Exact (Ω t) when s ≥ 1, 0 when s ≤ −1.
+/// `moment_n` (Σ Ω d · n), modelled as a uniform disc of radius β = √(Ω/π) on the tangent plane
+/// around the mean direction, at height t = moment_n / Ω above the horizon: with s = t/β, Ω β (s
+/// A(−s) + B(−s)), where A(u) = (2/π)(π/4 − (u√(1−u²) + asin u)/2) is the share of the disc above u
+/// and B(u) = (2/3π)(1 − u²)^{3/2} its first moment. Exact (Ω t) when s ≥ 1, 0 when s ≤ −1.
 #[inline]
 pub fn disc_clipped_cosine(omega: f64, moment_n: f64) -> f64 {
     if omega <= 0.0 {
@@ -270,22 +322,30 @@ pub fn disc_clipped_cosine(omega: f64, moment_n: f64) -> f64 {
     }
     let u = -s;
     let root = (1.0 - u * u).max(0.0).sqrt();
-    let share = (2.0 / std::f64::consts::PI) * (std::f64::consts::FRAC_PI_4 - 0.5 * (u * root + asin_fast(u)));
+    let share = (2.0 / std::f64::consts::PI)
+        * (std::f64::consts::FRAC_PI_4 - 0.5 * (u * root + asin_fast(u)));
     let first = (2.0 / (3.0 * std::f64::consts::PI)) * root * root * root;
     omega * beta * (s * share + first)
 }
 
 /// asin(x) on [−1, 1] to within 2.2e-8 (Abramowitz & Stegun 4.4.46: π/2 − √(1 − |x|) · a degree-7
-/// polynomial), a fraction of libm's cost: the disc clip ran once per coarse node astride a horizon.
+/// polynomial), a fraction of libm's cost: the disc clip ran once per coarse node astride a
+/// horizon.
 #[inline]
 fn asin_fast(x: f64) -> f64 {
     let a = x.abs().min(1.0);
-    let p = 1.570_796_305_0 + a * (-0.214_598_801_6 + a * (0.088_978_987_4 + a * (-0.050_174_304_6 + a * (0.030_891_881_0 + a * (-0.017_088_125_6 + a * (0.006_670_090_1 + a * -0.001_262_491_1))))));
+    let p = 1.570_796_305_0
+        + a * (-0.214_598_801_6
+            + a * (0.088_978_987_4
+                + a * (-0.050_174_304_6
+                    + a * (0.030_891_881_0
+                        + a * (-0.017_088_125_6 + a * (0.006_670_090_1 + a * -0.001_262_491_1))))));
     let r = std::f64::consts::FRAC_PI_2 - (1.0 - a).sqrt() * p;
     if x < 0.0 { -r } else { r }
 }
 
-/// Nodes of the tree no wider than a given angle, covering every leaf once (see [`LightTree::partition`]).
+/// Nodes of the tree no wider than a given angle, covering every leaf once (see
+/// [`LightTree::partition`]).
 #[derive(Debug, Clone, Default)]
 pub struct Partition {
     /// Leaf ranges [first, end), in leaf order.
@@ -302,7 +362,14 @@ pub struct PartitionCone {
     pub sin: f64,
 }
 
-fn build_node(nodes: &mut Vec<TreeNode>, order: &mut [u32], first: usize, set: &DirectionSet, level: usize, depth: &mut usize) -> u32 {
+fn build_node(
+    nodes: &mut Vec<TreeNode>,
+    order: &mut [u32],
+    first: usize,
+    set: &DirectionSet,
+    level: usize,
+    depth: &mut usize,
+) -> u32 {
     let (dirs, omegas, moments) = (set.directions(), set.solid_angles(), set.moments());
     *depth = (*depth).max(level);
     let index = nodes.len();
@@ -339,7 +406,9 @@ fn build_node(nodes: &mut Vec<TreeNode>, order: &mut [u32], first: usize, set: &
     };
     let mid = order.len() / 2;
     order.select_nth_unstable_by(mid, |&a, &b| {
-        dirs[a as usize][axis].total_cmp(&dirs[b as usize][axis]).then(a.cmp(&b))
+        dirs[a as usize][axis]
+            .total_cmp(&dirs[b as usize][axis])
+            .then(a.cmp(&b))
     });
     let (left_part, right_part) = order.split_at_mut(mid);
     let left = build_node(nodes, left_part, first, set, level + 1, depth);
@@ -379,16 +448,31 @@ mod tests {
             assert!((root.solid_angle - 4.0 * std::f64::consts::PI).abs() < 1e-12);
             for node in tree.nodes() {
                 let range = node.first as usize..(node.first + node.count) as usize;
-                let direct = compensated_sum(range.clone().map(|k| set.solid_angles()[tree.leaf_texels()[k] as usize]));
-                assert!((node.solid_angle - direct).abs() <= 1e-14 * direct.max(1.0), "n={n}");
+                let direct = compensated_sum(
+                    range
+                        .clone()
+                        .map(|k| set.solid_angles()[tree.leaf_texels()[k] as usize]),
+                );
+                assert!(
+                    (node.solid_angle - direct).abs() <= 1e-14 * direct.max(1.0),
+                    "n={n}"
+                );
                 assert!((node.mean_direction.length() - 1.0).abs() < 1e-12);
-                let moment: DVec3 = range.clone().map(|k| set.moments()[tree.leaf_texels()[k] as usize]).sum();
+                let moment: DVec3 = range
+                    .clone()
+                    .map(|k| set.moments()[tree.leaf_texels()[k] as usize])
+                    .sum();
                 assert!((moment - node.moment).length() < 1e-13);
                 for k in range {
-                    assert!(tree.leaf_directions()[k].dot(node.mean_direction) >= node.cone_cos - 1e-15);
+                    assert!(
+                        tree.leaf_directions()[k].dot(node.mean_direction) >= node.cone_cos - 1e-15
+                    );
                 }
                 if !node.is_leaf() {
-                    let (l, r) = (tree.nodes()[node.left as usize], tree.nodes()[node.right as usize]);
+                    let (l, r) = (
+                        tree.nodes()[node.left as usize],
+                        tree.nodes()[node.right as usize],
+                    );
                     assert_eq!(l.first, node.first);
                     assert_eq!(l.count + r.count, node.count);
                     assert_eq!(r.first, node.first + l.count);
@@ -402,14 +486,18 @@ mod tests {
             }
             // Balanced.
             let max_depth = (set.len() as f64).log2().ceil() as usize;
-            assert!(tree.depth() <= max_depth, "depth {} > {max_depth}", tree.depth());
+            assert!(
+                tree.depth() <= max_depth,
+                "depth {} > {max_depth}",
+                tree.depth()
+            );
         }
     }
 
     #[test]
     fn horizon_split_equals_the_leaf_by_leaf_clipped_sum() {
-        // Reference: every leaf of the range on its own, wholly above by its corners (moment · n) or
-        // clipped by the same linear rule (its accuracy is tested in direction_set).
+        // Reference: every leaf of the range on its own, wholly above by its corners (moment · n)
+        // or clipped by the same linear rule (its accuracy is tested in direction_set).
         use crate::sphere::direction_set::{clipped_cosine_linear, triangle_split};
         let set = DirectionSet::cube(16).unwrap();
         let tree = LightTree::build(&set);
@@ -419,7 +507,11 @@ mod tests {
         for trial in 0..300 {
             let n = rng.unit_vector();
             // A partition node, or the root, and a random sub-range of it.
-            let k = if trial % 3 == 0 { 0 } else { partition.nodes[(rng.next_u64() % partition.nodes.len() as u64) as usize] as usize };
+            let k = if trial % 3 == 0 {
+                0
+            } else {
+                partition.nodes[(rng.next_u64() % partition.nodes.len() as u64) as usize] as usize
+            };
             let node = tree.nodes()[k];
             let (f, e) = (node.first as usize, (node.first + node.count) as usize);
             let a = f + (rng.next_u64() % node.count as u64) as usize;
@@ -428,17 +520,36 @@ mod tests {
                 .map(|i| {
                     let corners = &tree.leaf_corners()[i];
                     let h = corners.map(|d| d.dot(n));
-                    if h.iter().all(|&x| x >= 0.0) { tree.leaf_moments()[i].dot(n) } else { clipped_cosine_linear(h, tree.leaf_solid_angles()[i], triangle_split(corners)) }
+                    if h.iter().all(|&x| x >= 0.0) {
+                        tree.leaf_moments()[i].dot(n)
+                    } else {
+                        clipped_cosine_linear(
+                            h,
+                            tree.leaf_solid_angles()[i],
+                            triangle_split(corners),
+                        )
+                    }
                 })
                 .sum();
             let (mut got, mut next) = (0.0, a);
             tree.split_by_horizon(k, a, z, n, 0, &mut |lo, hi, clipped| {
-                assert!(lo >= next && hi > lo && hi <= z, "parts in leaf order, disjoint, inside the range");
+                assert!(
+                    lo >= next && hi > lo && hi <= z,
+                    "parts in leaf order, disjoint, inside the range"
+                );
                 next = hi;
                 match clipped {
                     None => {
-                        assert!(tree.leaf_corners()[lo..hi].iter().flatten().all(|d| d.dot(n) >= 0.0));
-                        got += tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum::<f64>();
+                        assert!(
+                            tree.leaf_corners()[lo..hi]
+                                .iter()
+                                .flatten()
+                                .all(|d| d.dot(n) >= 0.0)
+                        );
+                        got += tree.leaf_moments()[lo..hi]
+                            .iter()
+                            .map(|m| m.dot(n))
+                            .sum::<f64>();
                     }
                     Some(c) => {
                         assert_eq!(hi, lo + 1);
@@ -447,15 +558,21 @@ mod tests {
                     }
                 }
             });
-            assert!((got - want).abs() <= 1e-12 * want.abs().max(1e-3), "trial {trial}: {got} vs {want}");
+            assert!(
+                (got - want).abs() <= 1e-12 * want.abs().max(1e-3),
+                "trial {trial}: {got} vs {want}"
+            );
         }
-        assert!(cut_leaves > 100, "the trials must cut leaves ({cut_leaves})");
+        assert!(
+            cut_leaves > 100,
+            "the trials must cut leaves ({cut_leaves})"
+        );
     }
 
     #[test]
     fn coarse_horizon_nodes_stay_close_to_the_leaf_walk() {
-        // ∫ max(ω·n, 0) dω over the whole sphere is π; the leaf walk gets it to ~1e-5. With the walk
-        // stopped at nodes of ≤ C leaves, the error grows with the band the disc model covers.
+        // ∫ max(ω·n, 0) dω over the whole sphere is π; the leaf walk gets it to ~1e-5. With the
+        // walk stopped at nodes of ≤ C leaves, the error grows with the band the disc model covers.
         let set = DirectionSet::cube(64).unwrap();
         let tree = LightTree::build(&set);
         let mut rng = crate::math::Rng::new(5);
@@ -466,13 +583,24 @@ mod tests {
             for _ in 0..200 {
                 let n = rng.unit_vector();
                 let (mut exact, mut got) = (0.0, 0.0);
-                tree.split_by_horizon(0, 0, leaves, n, 0, &mut |lo, hi, c| exact += c.unwrap_or_else(|| tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum()));
-                tree.split_by_horizon(0, 0, leaves, n, coarse, &mut |lo, hi, c| got += c.unwrap_or_else(|| tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum()));
+                tree.split_by_horizon(0, 0, leaves, n, 0, &mut |lo, hi, c| {
+                    exact += c.unwrap_or_else(|| {
+                        tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum()
+                    })
+                });
+                tree.split_by_horizon(0, 0, leaves, n, coarse, &mut |lo, hi, c| {
+                    got += c.unwrap_or_else(|| {
+                        tree.leaf_moments()[lo..hi].iter().map(|m| m.dot(n)).sum()
+                    })
+                });
                 worst = worst.max((got - std::f64::consts::PI).abs() / std::f64::consts::PI);
                 worst_band = worst_band.max((got - exact).abs() / std::f64::consts::PI);
             }
-            println!("coarse {coarse}: worst |total − π| / π {worst:.2e}, vs the leaf walk {worst_band:.2e}");
-            // Measured: 3.8e-8 for the leaf walk, 1.2e-4 / 2.0e-4 / 4.6e-4 / 9.0e-4 / 1.2e-3 at 4 to 64.
+            println!(
+                "coarse {coarse}: worst |total − π| / π {worst:.2e}, vs the leaf walk {worst_band:.2e}"
+            );
+            // Measured: 3.8e-8 for the leaf walk, 1.2e-4 / 2.0e-4 / 4.6e-4 / 9.0e-4 / 1.2e-3 at 4
+            // to 64.
             let bound = match coarse {
                 0 | 1 => 1e-6,
                 COARSE_HORIZON_LEAVES => 6e-4,
@@ -487,7 +615,10 @@ mod tests {
 
     #[test]
     fn asin_fast_is_within_3e_8_of_asin() {
-        let worst = (0..=200_000).map(|i| -1.0 + i as f64 * 1e-5).map(|x| (asin_fast(x) - x.asin()).abs()).fold(0.0f64, f64::max);
+        let worst = (0..=200_000)
+            .map(|i| -1.0 + i as f64 * 1e-5)
+            .map(|x| (asin_fast(x) - x.asin()).abs())
+            .fold(0.0f64, f64::max);
         assert!(worst < 3e-8, "{worst}");
     }
 

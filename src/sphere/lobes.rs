@@ -2,19 +2,21 @@
 //!
 //! Inputs: a [`LobeLayout`] and λ. Outputs: J unit centres in the local frame (z = normal, x =
 //! tangent) and evaluation of all J lobes at a local half-vector h. Invariants: centres lie on the
-//! upper hemisphere (z ≥ 0); every value is in [0, 1]; an isotropic set's values depend on h·n only.
+//! upper hemisphere (z ≥ 0); every value is in [0, 1]; an isotropic set's values depend on h·n
+//! only.
 //!
 //! Layouts (all documented, all parameters):
-//! - `Hemicube { n }` — the paper's: pixel centres of a hemicube over the half-vector hemisphere.
-//!   J = 3n². Top face z = 1: n × n pixel centres. Each of the four side faces (x = ±1, y = ±1, z ∈
-//!   [0, 1]) has ⌊n/2⌋ full rows of n pixels. For odd n the half-height row at the horizon does not split
-//!   into whole pixels; its 4·n half-pixels are merged into 2n centres evenly spaced in azimuth
-//!   (φ_k = π(k + ½)/n) at the elevation of the half-row's centre, atan(½/n). n = 7 gives J = 147 =
-//!   49 + 84 + 14, the paper's count; n = 8 gives 192, the paper's N_l layout for outgoing directions.
+//! - `Hemicube { n }` — the paper's: pixel centres of a hemicube over the half-vector hemisphere. J
+//!   = 3n². Top face z = 1: n × n pixel centres. Each of the four side faces (x = ±1, y = ±1, z ∈
+//!   [0, 1]) has ⌊n/2⌋ full rows of n pixels. For odd n the half-height row at the horizon does not
+//!   split into whole pixels; its 4·n half-pixels are merged into 2n centres evenly spaced in
+//!   azimuth (φ_k = π(k + ½)/n) at the elevation of the half-row's centre, atan(½/n). n = 7 gives J
+//!   = 147 = 49 + 84 + 14, the paper's count; n = 8 gives 192, the paper's N_l layout for outgoing
+//!   directions.
 //! - `Fibonacci { count }` — a spherical Fibonacci hemisphere: z_k = 1 − (k + ½)/J, φ_k = k·(golden
 //!   angle): equal-area spread for any J.
-//! - `Isotropic { count }` — rings: lobes averaged over azimuth, centred at polar angles
-//!   θ_j = (π/2)·j/J. p depends on h·n only; the honest choice where the scene has no tangent field.
+//! - `Isotropic { count }` — rings: lobes averaged over azimuth, centred at polar angles θ_j =
+//!   (π/2)·j/J. p depends on h·n only; the honest choice where the scene has no tangent field.
 
 use super::SphereError;
 use super::srbf;
@@ -75,7 +77,11 @@ impl LobeLayout {
     /// The centres (unit, z ≥ 0). Isotropic centres sit at azimuth 0 (x ≥ 0, y = 0).
     pub fn centres(&self) -> Result<Vec<DVec3>, SphereError> {
         let count = self.count();
-        let bad = |reason: &str| SphereError::BadLayout { layout: self.name(), count, reason: reason.into() };
+        let bad = |reason: &str| SphereError::BadLayout {
+            layout: self.name(),
+            count,
+            reason: reason.into(),
+        };
         if count == 0 {
             return Err(bad("at least one lobe is needed"));
         }
@@ -124,7 +130,11 @@ pub fn hemicube_directions(n: usize) -> Vec<DVec3> {
         let elevation = (0.5 / n as f64).atan();
         for k in 0..2 * n {
             let phi = std::f64::consts::PI * (k as f64 + 0.5) / n as f64;
-            out.push(DVec3::new(phi.cos() * elevation.cos(), phi.sin() * elevation.cos(), elevation.sin()));
+            out.push(DVec3::new(
+                phi.cos() * elevation.cos(),
+                phi.sin() * elevation.cos(),
+                elevation.sin(),
+            ));
         }
     }
     out
@@ -152,7 +162,8 @@ pub struct LobeSet {
     /// (cos θ_j, sin θ_j) of each centre, for ring lobes.
     polar: Vec<(f64, f64)>,
     /// Ring lobes only: each lobe tabulated at RING_TABLE + 1 points of t = √(1 − cos θh) ∈ [0, 1]
-    /// (the lobe is smooth in t; linear interpolation is within ~2e-6 of the closed form at λ = 81).
+    /// (the lobe is smooth in t; linear interpolation is within ~2e-6 of the closed form at λ =
+    /// 81).
     ring_table: Vec<f64>,
 }
 
@@ -166,7 +177,10 @@ impl LobeSet {
             return Err(SphereError::LambdaOutOfRange { lambda });
         }
         let centres = layout.centres()?;
-        let polar: Vec<(f64, f64)> = centres.iter().map(|c| (c.z, (c.x * c.x + c.y * c.y).sqrt())).collect();
+        let polar: Vec<(f64, f64)> = centres
+            .iter()
+            .map(|c| (c.z, (c.x * c.x + c.y * c.y).sqrt()))
+            .collect();
         let ring_table = if layout.is_isotropic() {
             polar
                 .iter()
@@ -181,7 +195,13 @@ impl LobeSet {
         } else {
             Vec::new()
         };
-        Ok(Self { layout, lambda, centres, polar, ring_table })
+        Ok(Self {
+            layout,
+            lambda,
+            centres,
+            polar,
+            ring_table,
+        })
     }
 
     /// The layout.
@@ -241,8 +261,8 @@ impl LobeSet {
         a + (b - a) * f
     }
 
-    /// Ring lobe j's table: its values at t = k / [`Self::RING_INTERVALS`], k = 0 ..= RING_INTERVALS
-    /// (empty for other layouts). [`Self::ring_value`] interpolates it linearly.
+    /// Ring lobe j's table: its values at t = k / [`Self::RING_INTERVALS`], k = 0 ..=
+    /// RING_INTERVALS (empty for other layouts). [`Self::ring_value`] interpolates it linearly.
     pub fn ring_row(&self, j: usize) -> &[f64] {
         let n = RING_TABLE + 1;
         self.ring_table.get(j * n..(j + 1) * n).unwrap_or(&[])
@@ -264,14 +284,14 @@ impl LobeSet {
         }
     }
 
-    /// The lobe's half-angle of support (G ≥ e^−cutoff) at sharpness λ, in radians: for ring lobes the
-    /// distance in polar angle, for Gaussians the angle to the centre.
+    /// The lobe's half-angle of support (G ≥ e^−cutoff) at sharpness λ, in radians: for ring lobes
+    /// the distance in polar angle, for Gaussians the angle to the centre.
     pub fn support_angle(lambda: f64, cutoff_exponent: f64) -> f64 {
         srbf::support_cosine(lambda, cutoff_exponent).acos()
     }
 
-    /// Angular distance from h to lobe j's centre as the support test sees it (polar-angle difference
-    /// for ring lobes).
+    /// Angular distance from h to lobe j's centre as the support test sees it (polar-angle
+    /// difference for ring lobes).
     pub fn distance(&self, j: usize, h: DVec3) -> f64 {
         if self.layout.is_isotropic() {
             (h.z.clamp(-1.0, 1.0).acos() - self.polar[j].0.clamp(-1.0, 1.0).acos()).abs()
@@ -289,7 +309,12 @@ impl LobeSet {
 
     /// p(h) = Σ c_j G_j(h).
     pub fn p(&self, coefficients: &[f64], h: DVec3) -> f64 {
-        coefficients.iter().enumerate().take(self.centres.len()).map(|(j, &c)| c * self.eval_one(j, h)).sum()
+        coefficients
+            .iter()
+            .enumerate()
+            .take(self.centres.len())
+            .map(|(j, &c)| c * self.eval_one(j, h))
+            .sum()
     }
 }
 
@@ -303,7 +328,10 @@ mod tests {
         for n in 1..=12 {
             let d = hemicube_directions(n);
             assert_eq!(d.len(), 3 * n * n, "n={n}");
-            assert!(d.iter().all(|v| v.z > 0.0 && (v.length() - 1.0).abs() < 1e-12));
+            assert!(
+                d.iter()
+                    .all(|v| v.z > 0.0 && (v.length() - 1.0).abs() < 1e-12)
+            );
         }
         let paper = LobeLayout::PAPER.centres().unwrap();
         assert_eq!(paper.len(), 147);
@@ -315,7 +343,10 @@ mod tests {
                 .filter(|(k, _)| *k != i)
                 .map(|(_, b)| a.dot(*b).clamp(-1.0, 1.0).acos().to_degrees())
                 .fold(f64::INFINITY, f64::min);
-            assert!((5.0..20.0).contains(&nearest), "centre {i} nearest {nearest}°");
+            assert!(
+                (5.0..20.0).contains(&nearest),
+                "centre {i} nearest {nearest}°"
+            );
         }
         assert_eq!(hemicube_directions(8).len(), 192);
     }
@@ -323,11 +354,18 @@ mod tests {
     #[test]
     fn fibonacci_is_well_spread() {
         let d = fibonacci_hemisphere(147);
-        assert!(d.iter().all(|v| v.z > 0.0 && (v.length() - 1.0).abs() < 1e-12));
+        assert!(
+            d.iter()
+                .all(|v| v.z > 0.0 && (v.length() - 1.0).abs() < 1e-12)
+        );
         let min_angle = d
             .iter()
             .enumerate()
-            .flat_map(|(i, a)| d.iter().skip(i + 1).map(move |b| a.dot(*b).clamp(-1.0, 1.0).acos()))
+            .flat_map(|(i, a)| {
+                d.iter()
+                    .skip(i + 1)
+                    .map(move |b| a.dot(*b).clamp(-1.0, 1.0).acos())
+            })
             .fold(f64::INFINITY, f64::min)
             .to_degrees();
         assert!(min_angle > 6.0, "min angle {min_angle}°");

@@ -1,13 +1,13 @@
 //! The Gaussian spherical radial basis function of Tsai & Shih 2006 (method.md §3).
 //!
-//! G(x; λ) = exp(2λ(x − 1)), x = h·ξ the cosine to the lobe centre: peak 1 at x = 1, and written this
-//! way it cannot overflow. Its integral over the sphere is (π/λ)(1 − e^(−4λ)).
+//! G(x; λ) = exp(2λ(x − 1)), x = h·ξ the cosine to the lobe centre: peak 1 at x = 1, and written
+//! this way it cannot overflow. Its integral over the sphere is (π/λ)(1 − e^(−4λ)).
 //!
-//! Bandwidth: the paper prints σ² = 1 − (cosh(2λ) − (2λ)⁻¹); the correct relation uses **coth**: the
-//! mean cosine of a von Mises–Fisher lobe with κ = 2λ is L(κ) = coth κ − 1/κ (the Langevin function),
-//! and σ² = 1 − L(2λ). For σ = π/40, λ = 81.06. (With cosh there is a spurious root near λ = 0.6.)
-//! We evaluate 1 − L(κ) as 1/κ − 2/expm1(2κ), which has no cancellation for large κ, and by its
-//! Taylor series for small κ.
+//! Bandwidth: the paper prints σ² = 1 − (cosh(2λ) − (2λ)⁻¹); the correct relation uses **coth**:
+//! the mean cosine of a von Mises–Fisher lobe with κ = 2λ is L(κ) = coth κ − 1/κ (the Langevin
+//! function), and σ² = 1 − L(2λ). For σ = π/40, λ = 81.06. (With cosh there is a spurious root near
+//! λ = 0.6.) We evaluate 1 − L(κ) as 1/κ − 2/expm1(2κ), which has no cancellation for large κ, and
+//! by its Taylor series for small κ.
 //!
 //! Inputs: λ > 0 (or σ in (0, 1)). Outputs: finite values for every λ from 1e-6 to 1e8.
 
@@ -47,8 +47,8 @@ pub fn sigma_from_lambda(lambda: f64) -> Result<f64, SphereError> {
     Ok(one_minus_mean_cosine(2.0 * lambda).sqrt())
 }
 
-/// λ of a lobe of width σ, the inverse of [`sigma_from_lambda`] (bisection on log κ: 1 − L is strictly
-/// decreasing from 1 at κ → 0 to 0 at κ → ∞, so the root is unique).
+/// λ of a lobe of width σ, the inverse of [`sigma_from_lambda`] (bisection on log κ: 1 − L is
+/// strictly decreasing from 1 at κ → 0 to 0 at κ → ∞, so the root is unique).
 pub fn lambda_from_sigma(sigma: f64) -> Result<f64, SphereError> {
     if !(sigma.is_finite() && sigma > 0.0 && sigma < 1.0) {
         return Err(SphereError::SigmaOutOfRange { sigma });
@@ -66,16 +66,17 @@ pub fn lambda_from_sigma(sigma: f64) -> Result<f64, SphereError> {
     Ok(0.5 * (0.5 * (lo + hi)).exp())
 }
 
-/// The cosine below which G(x; λ) < e^(−cutoff_exponent): x_min = 1 − cutoff/(2λ), clamped to [-1, 1].
-/// Quadratures and renderers skip lobes past it (e^(−40) ≈ 4e-18 is below f64's relative precision).
+/// The cosine below which G(x; λ) < e^(−cutoff_exponent): x_min = 1 − cutoff/(2λ), clamped to [-1,
+/// 1]. Quadratures and renderers skip lobes past it (e^(−40) ≈ 4e-18 is below f64's relative
+/// precision).
 pub fn support_cosine(lambda: f64, cutoff_exponent: f64) -> f64 {
     (1.0 - cutoff_exponent / (2.0 * lambda)).clamp(-1.0, 1.0)
 }
 
-/// The ring lobe: G averaged over the azimuth of its centre, for a half-vector at polar angle θh and a
-/// centre at polar angle θj (both from the normal), given by their cosines and sines:
-/// (1/2π) ∫ G(h·R_φ ξ) dφ = exp(2λ(cos(θh − θj) − 1)) · I0e(2λ sin θh sin θj).
-/// Depends on h·n only: the isotropic model's basis.
+/// The ring lobe: G averaged over the azimuth of its centre, for a half-vector at polar angle θh
+/// and a centre at polar angle θj (both from the normal), given by their cosines and sines: (1/2π)
+/// ∫ G(h·R_φ ξ) dφ = exp(2λ(cos(θh − θj) − 1)) · I0e(2λ sin θh sin θj). Depends on h·n only: the
+/// isotropic model's basis.
 #[inline]
 pub fn ring_lobe(cos_h: f64, sin_h: f64, cos_j: f64, sin_j: f64, lambda: f64) -> f64 {
     let cos_diff = (cos_h * cos_j + sin_h * sin_j).clamp(-1.0, 1.0);
@@ -101,7 +102,10 @@ mod tests {
         for &lambda in &[1e-4, 0.01, 0.3, 1.0, 81.0, 5000.0, 1e7] {
             let sigma = sigma_from_lambda(lambda).unwrap();
             let back = lambda_from_sigma(sigma).unwrap();
-            assert!(((back - lambda) / lambda).abs() < 1e-9, "lambda={lambda} back={back}");
+            assert!(
+                ((back - lambda) / lambda).abs() < 1e-9,
+                "lambda={lambda} back={back}"
+            );
         }
         assert!(lambda_from_sigma(0.0).is_err());
         assert!(lambda_from_sigma(1.0).is_err());
@@ -128,10 +132,10 @@ mod tests {
         assert!(((1.0 - num / den) - one_minus_mean_cosine(kappa)).abs() < 1e-12);
     }
 
-    /// ∫G dω by quadrature in polar coordinates about an arbitrary axis: θ by composite Gauss–Legendre
-    /// (panels packed near the peak), φ by the trapezoid rule on a random tilted frame, evaluating G
-    /// through the dot product with the centre (not through the polar angle), so a wrong exponent,
-    /// factor or axis handling would show.
+    /// ∫G dω by quadrature in polar coordinates about an arbitrary axis: θ by composite
+    /// Gauss–Legendre (panels packed near the peak), φ by the trapezoid rule on a random tilted
+    /// frame, evaluating G through the dot product with the centre (not through the polar angle),
+    /// so a wrong exponent, factor or axis handling would show.
     fn quadrature_integral(lambda: f64, seed: u64) -> f64 {
         let mut rng = Rng::new(seed);
         let xi = rng.unit_vector();
@@ -168,7 +172,10 @@ mod tests {
             let want = (PI / lambda) * (1.0 - (-4.0 * lambda).exp());
             assert!(((closed - want) / want).abs() < 1e-14);
             let quad = quadrature_integral(lambda, i as u64 + 3);
-            assert!(((quad - closed) / closed).abs() < 1e-9, "lambda={lambda} quad={quad} closed={closed}");
+            assert!(
+                ((quad - closed) / closed).abs() < 1e-9,
+                "lambda={lambda} quad={quad} closed={closed}"
+            );
         }
     }
 
@@ -178,7 +185,11 @@ mod tests {
         for &lambda in &[1.0, 81.06, 5000.0] {
             for _ in 0..20 {
                 let th = rng.range(0.0, PI / 2.0);
-                let tj = if lambda > 1000.0 { th + rng.range(-0.02, 0.02) } else { rng.range(0.0, PI / 2.0) };
+                let tj = if lambda > 1000.0 {
+                    th + rng.range(-0.02, 0.02)
+                } else {
+                    rng.range(0.0, PI / 2.0)
+                };
                 let (ch, sh, cj, sj) = (th.cos(), th.sin(), tj.cos(), tj.sin().abs());
                 // Brute force: trapezoid over the azimuth (periodic, exponentially convergent).
                 let n = 20_000;
@@ -191,7 +202,10 @@ mod tests {
                 let brute = sum / n as f64;
                 let ring = ring_lobe(ch, sh, cj, sj, lambda);
                 let tol = 1e-10 + 1e-9 * brute;
-                assert!((ring - brute).abs() <= tol, "λ={lambda} ring={ring} brute={brute}");
+                assert!(
+                    (ring - brute).abs() <= tol,
+                    "λ={lambda} ring={ring} brute={brute}"
+                );
             }
         }
     }

@@ -1,8 +1,9 @@
-//! The painting app, headless: egui_kittest drives the real UI (pointer events on the viewport), the
-//! worker bakes, fits and renders on the wgpu preview (lavapipe without a GPU). Checks that a
+//! The painting app, headless: egui_kittest drives the real UI (pointer events on the viewport),
+//! the worker bakes, fits and renders on the wgpu preview (lavapipe without a GPU). Checks that a
 //! left-drag becomes a stroke in the view's pixels, that the fit runs on release, that the painted
 //! region of the preview gets brighter (and pixels far from the stroke do not rise more than it),
-//! and that Ctrl+Z takes the highlight away again. Also `glint app --replay --screenshot` end to end.
+//! and that Ctrl+Z takes the highlight away again. Also `glint app --replay --screenshot` end to
+//! end.
 //!
 //! Needs a Vulkan or GL adapter; without one the tests skip with a message, except under CI=true
 //! where they fail.
@@ -17,12 +18,12 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// A short stroke on the bunny's flank (default view, view pixels) where the studio's brightest light
-/// reflects: the spot a lobe at h = n lights most (found by rendering that lobe alone, `glint render`).
-/// A highlight painted where a light can reflect is one an isotropic BRDF can make without lighting
-/// up the rest; one painted where no light reflects (the sample stroke across the back) can only be
-/// approached by broad lobes that brighten every pixel alike (measured with `glint fit`: far pixels
-/// rose 0.027 for 0.030 in the painted band).
+/// A short stroke on the bunny's flank (default view, view pixels) where the studio's brightest
+/// light reflects: the spot a lobe at h = n lights most (found by rendering that lobe alone, `glint
+/// render`). A highlight painted where a light can reflect is one an isotropic BRDF can make
+/// without lighting up the rest; one painted where no light reflects (the sample stroke across the
+/// back) can only be approached by broad lobes that brighten every pixel alike (measured with
+/// `glint fit`: far pixels rose 0.027 for 0.030 in the painted band).
 const STROKE: [[f64; 2]; 2] = [[409.0, 262.0], [418.0, 272.0]];
 const RADIUS_PX: f64 = 10.0;
 const KEEP_WEIGHT: f64 = 1.0;
@@ -32,7 +33,9 @@ const INTENSITY: f32 = 0.6;
 fn gpu_or_skip() -> bool {
     match glint::gpu::GpuContext::headless() {
         Ok(_) => true,
-        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => panic!("CI=true but no GPU adapter: {e}"),
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => {
+            panic!("CI=true but no GPU adapter: {e}")
+        }
         Err(e) => {
             eprintln!("skipping: no GPU adapter ({e})");
             false
@@ -42,7 +45,14 @@ fn gpu_or_skip() -> bool {
 
 fn options() -> AppOptions {
     let samples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("samples");
-    AppOptions { scene: samples.join("bunny.glb"), env: samples.join("studio_1k.exr"), autosave: None, session: None, replay: Vec::new(), preview: Default::default() }
+    AppOptions {
+        scene: samples.join("bunny.glb"),
+        env: samples.join("studio_1k.exr"),
+        autosave: None,
+        session: None,
+        replay: Vec::new(),
+        preview: Default::default(),
+    }
 }
 
 type AppHarness<'a> = Harness<'a, Option<GlintApp>>;
@@ -59,10 +69,18 @@ fn step_until(h: &mut AppHarness, what: &str, timeout_secs: f64, done: impl Fn(&
         if h.state().as_ref().is_some_and(&done) {
             return;
         }
-        if let Some(e) = h.state().as_ref().and_then(|a| a.messages().iter().find(|m| m.starts_with("error")).cloned()) {
+        if let Some(e) = h.state().as_ref().and_then(|a| {
+            a.messages()
+                .iter()
+                .find(|m| m.starts_with("error"))
+                .cloned()
+        }) {
             panic!("waiting for {what}: {e}");
         }
-        assert!(start.elapsed().as_secs_f64() < timeout_secs, "timed out waiting for {what}");
+        assert!(
+            start.elapsed().as_secs_f64() < timeout_secs,
+            "timed out waiting for {what}"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -90,24 +108,39 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
         return;
     }
     let opts = options();
-    let mut h: AppHarness = Harness::builder().with_size([1200.0, 700.0]).with_max_steps(1_000_000).build_ui_state(
-        move |ui, state: &mut Option<GlintApp>| {
-            state.get_or_insert_with(|| GlintApp::new(opts.clone(), ui.ctx())).show(ui);
-        },
-        None,
+    let mut h: AppHarness = Harness::builder()
+        .with_size([1200.0, 700.0])
+        .with_max_steps(1_000_000)
+        .build_ui_state(
+            move |ui, state: &mut Option<GlintApp>| {
+                state
+                    .get_or_insert_with(|| GlintApp::new(opts.clone(), ui.ctx()))
+                    .show(ui);
+            },
+            None,
+        );
+    step_until(
+        &mut h,
+        "the first view's bake, frame and prepared fit",
+        300.0,
+        |a| a.ready() && a.preview_image().is_some() && a.first_fit_ready_secs().is_some(),
     );
-    step_until(&mut h, "the first view's bake, frame and prepared fit", 300.0, |a| a.ready() && a.preview_image().is_some() && a.first_fit_ready_secs().is_some());
     // Unpainted pixels weigh as much as painted ones: the user's lever for "leave the rest alone".
     let mut settings = app(&h).document().settings.clone();
     settings.keep_weight = KEEP_WEIGHT;
     settings.brush.intensity = INTENSITY;
     h.state_mut().as_mut().unwrap().set_settings(settings);
-    step_until(&mut h, "the fit of the new settings", 120.0, |a| a.fits_done() >= 1 && !a.fit_pending());
+    step_until(&mut h, "the fit of the new settings", 120.0, |a| {
+        a.fits_done() >= 1 && !a.fit_pending()
+    });
     let before: Arc<Image> = app(&h).preview_image().unwrap().clone();
     assert_eq!((before.width, before.height), (640, 480));
 
     // Left-drag along the stroke on screen.
-    let screen: Vec<Pos2> = STROKE.iter().map(|p| app(&h).view_to_screen(*p).unwrap()).collect();
+    let screen: Vec<Pos2> = STROKE
+        .iter()
+        .map(|p| app(&h).view_to_screen(*p).unwrap())
+        .collect();
     let mut path = Vec::new();
     for w in screen.windows(2) {
         for k in 0..8 {
@@ -117,16 +150,32 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
     path.push(*screen.last().unwrap());
     h.event(Event::PointerMoved(path[0]));
     h.step();
-    h.event(Event::PointerButton { pos: path[0], button: PointerButton::Primary, pressed: true, modifiers: Modifiers::NONE });
+    h.event(Event::PointerButton {
+        pos: path[0],
+        button: PointerButton::Primary,
+        pressed: true,
+        modifiers: Modifiers::NONE,
+    });
     h.step();
     for p in &path[1..] {
         h.event(Event::PointerMoved(*p));
         h.step();
     }
     let released = Instant::now();
-    h.event(Event::PointerButton { pos: *path.last().unwrap(), button: PointerButton::Primary, pressed: false, modifiers: Modifiers::NONE });
-    step_until(&mut h, "the fit", 120.0, |a| a.fits_done() >= 2 && !a.fit_pending());
-    eprintln!("stroke release → preview: {:.3} s (app's own figure {:.3} s)", released.elapsed().as_secs_f64(), app(&h).last_fit().unwrap().release_to_preview_secs);
+    h.event(Event::PointerButton {
+        pos: *path.last().unwrap(),
+        button: PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
+    step_until(&mut h, "the fit", 120.0, |a| {
+        a.fits_done() >= 2 && !a.fit_pending()
+    });
+    eprintln!(
+        "stroke release → preview: {:.3} s (app's own figure {:.3} s)",
+        released.elapsed().as_secs_f64(),
+        app(&h).last_fit().unwrap().release_to_preview_secs
+    );
 
     // The stroke arrived in view pixels, where it was drawn (within a pixel of the mapping).
     let doc = app(&h).document();
@@ -134,13 +183,19 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
     let points = &doc.views[0].strokes[0].points;
     assert!(points.len() >= 4, "{points:?}");
     for p in points {
-        assert!(polyline_distance(*p, &STROKE) < 1.5, "{p:?} is off the drawn stroke");
+        assert!(
+            polyline_distance(*p, &STROKE) < 1.5,
+            "{p:?} is off the drawn stroke"
+        );
     }
     // The fit ran and found specular lobes.
     let fit = app(&h).last_fit().unwrap();
     let m = &fit.result.material;
     assert!(m.fit.pixels > 1000, "{} fit pixels", m.fit.pixels);
-    assert!(m.coefficients.iter().flatten().any(|c| *c > 0.0), "no specular lobe was fitted");
+    assert!(
+        m.coefficients.iter().flatten().any(|c| *c > 0.0),
+        "no specular lobe was fitted"
+    );
     let after: Arc<Image> = app(&h).preview_image().unwrap().clone();
 
     let painted = |p: [f64; 2]| polyline_distance(p, &STROKE) < RADIUS_PX;
@@ -151,39 +206,85 @@ fn painting_a_stroke_fits_and_brightens_the_painted_region_only() {
     eprintln!("far pixels ({n_far} px): mean luminance {far_before:.4} → {far_after:.4}");
     assert!(n_far > 2000, "{n_far} far pixels");
     assert!(n > 300, "{n} painted pixels");
-    assert!(lum_after > 1.15 * lum_before, "painted region not brighter: {lum_before} → {lum_after}");
+    assert!(
+        lum_after > 1.15 * lum_before,
+        "painted region not brighter: {lum_before} → {lum_after}"
+    );
 
-    // Far pixels change little: the fitted lobe also lights the few other spots where a light reflects
-    // at the same half-vector angle, which moves the mean of the far pixels by a small fraction of the
-    // painted rise.
+    // Far pixels change little: the fitted lobe also lights the few other spots where a light
+    // reflects at the same half-vector angle, which moves the mean of the far pixels by a small
+    // fraction of the painted rise.
     let rise_painted = lum_after - lum_before;
     let change_far = (far_after - far_before).abs();
-    eprintln!("far change / painted rise = {:.3}", change_far / rise_painted);
-    assert!(change_far < 0.2 * rise_painted, "far pixels changed {change_far} vs the painted rise {rise_painted}");
-    assert!(change_far < 0.1 * far_before, "far pixels changed {change_far} from {far_before}");
+    eprintln!(
+        "far change / painted rise = {:.3}",
+        change_far / rise_painted
+    );
+    assert!(
+        change_far < 0.2 * rise_painted,
+        "far pixels changed {change_far} vs the painted rise {rise_painted}"
+    );
+    assert!(
+        change_far < 0.1 * far_before,
+        "far pixels changed {change_far} from {far_before}"
+    );
 
     // Ctrl+Z takes the stroke back: the preview returns to the diffuse frame.
     h.key_press_modifiers(Modifiers::COMMAND, egui::Key::Z);
-    step_until(&mut h, "the fit after undo", 120.0, |a| a.fits_done() >= 3 && !a.fit_pending());
+    step_until(&mut h, "the fit after undo", 120.0, |a| {
+        a.fits_done() >= 3 && !a.fit_pending()
+    });
     assert_eq!(app(&h).document().stroke_count(), 0);
     let undone: Arc<Image> = app(&h).preview_image().unwrap().clone();
     let (_, lum_undone, _) = mean_luminance(&before, &undone, painted);
-    assert!((lum_undone - lum_before).abs() < 0.02 * lum_before, "undo left {lum_undone} vs {lum_before}");
+    assert!(
+        (lum_undone - lum_before).abs() < 0.02 * lum_before,
+        "undo left {lum_undone} vs {lum_before}"
+    );
 
     // The rest of the bake, refined (decision (e)): the engine switches to the refined mesh, and a
-    // redo fits the stroke again there: the painted region brightens as it did on the first view's cuts.
-    step_until(&mut h, "the whole bake with its refinement", 300.0, |a| a.bake_complete());
-    let note = app(&h).messages().iter().find(|m| m.starts_with("bake complete")).cloned().unwrap_or_default();
-    let vertices: usize = note.split('(').nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
-    assert!(vertices > 1839, "the bunny's bake refines its 1,839 vertices: {note}");
+    // redo fits the stroke again there: the painted region brightens as it did on the first view's
+    // cuts.
+    step_until(&mut h, "the whole bake with its refinement", 300.0, |a| {
+        a.bake_complete()
+    });
+    let note = app(&h)
+        .messages()
+        .iter()
+        .find(|m| m.starts_with("bake complete"))
+        .cloned()
+        .unwrap_or_default();
+    let vertices: usize = note
+        .split('(')
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    assert!(
+        vertices > 1839,
+        "the bunny's bake refines its 1,839 vertices: {note}"
+    );
     h.key_press_modifiers(Modifiers::COMMAND | Modifiers::SHIFT, egui::Key::Z);
-    step_until(&mut h, "the fit after redo, on the refined mesh", 120.0, |a| a.fits_done() >= 4 && !a.fit_pending());
+    step_until(
+        &mut h,
+        "the fit after redo, on the refined mesh",
+        120.0,
+        |a| a.fits_done() >= 4 && !a.fit_pending(),
+    );
     assert_eq!(app(&h).document().stroke_count(), 1);
     let redone: Arc<Image> = app(&h).preview_image().unwrap().clone();
     let (_, lum_redone, _) = mean_luminance(&before, &redone, painted);
-    eprintln!("after the refined bake: painted region {lum_before:.4} → {lum_redone:.4} (first fit {lum_after:.4})");
-    assert!(lum_redone > 1.15 * lum_before, "painted region after the refined bake: {lum_before} → {lum_redone}");
-    assert!((lum_redone - lum_after).abs() < 0.1 * lum_after, "refined {lum_redone} vs first {lum_after}");
+    eprintln!(
+        "after the refined bake: painted region {lum_before:.4} → {lum_redone:.4} (first fit {lum_after:.4})"
+    );
+    assert!(
+        lum_redone > 1.15 * lum_before,
+        "painted region after the refined bake: {lum_before} → {lum_redone}"
+    );
+    assert!(
+        (lum_redone - lum_after).abs() < 0.1 * lum_after,
+        "refined {lum_redone} vs first {lum_after}"
+    );
 }
 
 #[test]
@@ -198,12 +299,26 @@ fn replay_screenshot_writes_the_app_after_the_fit() {
     let root = env!("CARGO_MANIFEST_DIR");
     let o = std::process::Command::new(exe)
         .current_dir(root)
-        .args(["app", "samples/bunny.glb", "--env", "samples/studio_1k.exr", "--replay", "samples/strokes/bunny-highlight.json", "--size", "1000x600", "--screenshot"])
+        .args([
+            "app",
+            "samples/bunny.glb",
+            "--env",
+            "samples/studio_1k.exr",
+            "--replay",
+            "samples/strokes/bunny-highlight.json",
+            "--size",
+            "1000x600",
+            "--screenshot",
+        ])
         .arg(&out)
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     assert!(stdout.contains("release → preview"), "{stdout}");
     let img = image::open(&out).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (1000, 600));
@@ -211,7 +326,12 @@ fn replay_screenshot_writes_the_app_after_the_fit() {
     let distinct: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
     assert!(distinct.len() > 500, "{} distinct colours", distinct.len());
     // Bad input: one line, non-zero exit, no panic.
-    let o = std::process::Command::new(exe).current_dir(root).args(["app", "no-such.glb", "--screenshot"]).arg(&out).output().unwrap();
+    let o = std::process::Command::new(exe)
+        .current_dir(root)
+        .args(["app", "no-such.glb", "--screenshot"])
+        .arg(&out)
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
@@ -227,27 +347,48 @@ fn side_panel_scrolls_to_the_export_row_at_the_default_window_size() {
     }
     let opts = options();
     let (w, h_px) = (1280.0, 760.0);
-    let mut h: AppHarness = Harness::builder().with_size([w, h_px]).with_max_steps(1_000_000).build_ui_state(
-        move |ui, state: &mut Option<GlintApp>| {
-            state.get_or_insert_with(|| GlintApp::new(opts.clone(), ui.ctx())).show(ui);
-        },
-        None,
+    let mut h: AppHarness = Harness::builder()
+        .with_size([w, h_px])
+        .with_max_steps(1_000_000)
+        .build_ui_state(
+            move |ui, state: &mut Option<GlintApp>| {
+                state
+                    .get_or_insert_with(|| GlintApp::new(opts.clone(), ui.ctx()))
+                    .show(ui);
+            },
+            None,
+        );
+    step_until(
+        &mut h,
+        "the first view's bake, frame and prepared fit",
+        300.0,
+        |a| a.ready() && a.preview_image().is_some() && a.first_fit_ready_secs().is_some(),
     );
-    step_until(&mut h, "the first view's bake, frame and prepared fit", 300.0, |a| a.ready() && a.preview_image().is_some() && a.first_fit_ready_secs().is_some());
     // A fit puts the p(h) image into the panel (what pushed the export row off the window).
     let settings = app(&h).document().settings.clone();
     h.state_mut().as_mut().unwrap().set_settings(settings);
-    step_until(&mut h, "a fit", 120.0, |a| a.fits_done() >= 1 && !a.fit_pending());
+    step_until(&mut h, "a fit", 120.0, |a| {
+        a.fits_done() >= 1 && !a.fit_pending()
+    });
     for _ in 0..10 {
         h.step();
     }
     let before = h.get_by_label("Export").rect();
-    eprintln!("export button at y {:.0}..{:.0} in a {h_px}-point window", before.min.y, before.max.y);
+    eprintln!(
+        "export button at y {:.0}..{:.0} in a {h_px}-point window",
+        before.min.y, before.max.y
+    );
     let panel = Pos2::new(w - 80.0, 0.5 * h_px);
     h.event(Event::PointerMoved(panel));
     h.step();
     for _ in 0..40 {
-        h.event(Event::MouseWheel { unit: egui::MouseWheelUnit::Point, delta: egui::vec2(0.0, -60.0), phase: egui::TouchPhase::Move, source: egui::MouseWheelSource::Unknown, modifiers: Modifiers::NONE });
+        h.event(Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Point,
+            delta: egui::vec2(0.0, -60.0),
+            phase: egui::TouchPhase::Move,
+            source: egui::MouseWheelSource::Unknown,
+            modifiers: Modifiers::NONE,
+        });
         h.step();
     }
     for _ in 0..30 {
@@ -255,7 +396,16 @@ fn side_panel_scrolls_to_the_export_row_at_the_default_window_size() {
     }
     let after = h.get_by_label("Export").rect();
     eprintln!("after scrolling: y {:.0}..{:.0}", after.min.y, after.max.y);
-    assert!(after.min.y >= 0.0 && after.max.y <= h_px, "the export row is not reachable: {after:?} (window height {h_px})");
-    assert!(before.max.y > h_px, "the export row fits without scrolling now ({before:?}): this test no longer checks the scrolling");
-    assert!(after.min.y < before.min.y, "the wheel did not scroll the panel: {before:?} -> {after:?}");
+    assert!(
+        after.min.y >= 0.0 && after.max.y <= h_px,
+        "the export row is not reachable: {after:?} (window height {h_px})"
+    );
+    assert!(
+        before.max.y > h_px,
+        "the export row fits without scrolling now ({before:?}): this test no longer checks the scrolling"
+    );
+    assert!(
+        after.min.y < before.min.y,
+        "the wheel did not scroll the panel: {before:?} -> {after:?}"
+    );
 }

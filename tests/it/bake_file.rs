@@ -1,6 +1,6 @@
 //! The bake file and `glint bake` end to end: reuse when nothing changed; a corrupt, truncated or
-//! older-version bake is detected, reported and rebuilt; `--json` carries the documented keys; baking
-//! the fit view's vertices first gives that view the same transfer as the full bake.
+//! older-version bake is detected, reported and rebuilt; `--json` carries the documented keys;
+//! baking the fit view's vertices first gives that view the same transfer as the full bake.
 
 use crate::common;
 
@@ -18,9 +18,22 @@ fn glint(args: &[&str]) -> std::process::Output {
 fn bake_json(out: &Path) -> (serde_json::Value, String) {
     let scene = common::assets().join("glb/teapot.glb");
     let env = common::assets().join("hdr/small/courtyard_512.exr");
-    let o = glint(&["bake", scene.to_str().unwrap(), "--env", env.to_str().unwrap(), "--out", out.to_str().unwrap(), "--json", "--fit-size", "80x60"]);
+    let o = glint(&[
+        "bake",
+        scene.to_str().unwrap(),
+        "--env",
+        env.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+        "--fit-size",
+        "80x60",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    (serde_json::from_slice(&o.stdout).expect("one JSON object"), String::from_utf8_lossy(&o.stderr).to_string())
+    (
+        serde_json::from_slice(&o.stdout).expect("one JSON object"),
+        String::from_utf8_lossy(&o.stderr).to_string(),
+    )
 }
 
 #[test]
@@ -28,14 +41,35 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     let dir = common::temp_dir("bakefile");
     let out = dir.join("teapot.bake");
     let (first, _) = bake_json(&out);
-    for key in ["vertices", "rays_traced", "mean_cut_size", "seconds", "decisions", "transfer_seconds", "bytes_per_vertex"] {
+    for key in [
+        "vertices",
+        "rays_traced",
+        "mean_cut_size",
+        "seconds",
+        "decisions",
+        "transfer_seconds",
+        "bytes_per_vertex",
+    ] {
         assert!(!first[key].is_null(), "missing key {key}");
     }
     // The teapot's 529 vertices, plus the midpoints of edges the refinement split (decision (e)).
     let vertices = first["vertices"].as_u64().unwrap();
-    assert!(vertices > 529, "the teapot under courtyard is refined: {vertices}");
-    assert_eq!(first["decisions"]["refined_vertices"].as_u64(), Some(vertices));
-    assert!(first["decisions"]["refine_reason"].as_str().unwrap().contains("edges split"), "{}", first["decisions"]["refine_reason"]);
+    assert!(
+        vertices > 529,
+        "the teapot under courtyard is refined: {vertices}"
+    );
+    assert_eq!(
+        first["decisions"]["refined_vertices"].as_u64(),
+        Some(vertices)
+    );
+    assert!(
+        first["decisions"]["refine_reason"]
+            .as_str()
+            .unwrap()
+            .contains("edges split"),
+        "{}",
+        first["decisions"]["refine_reason"]
+    );
     assert_eq!(first["reused"].as_bool(), Some(false));
     assert!(first["rays_traced"].as_u64().unwrap() > 0);
     let (second, _) = bake_json(&out);
@@ -49,7 +83,10 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     std::fs::write(&path, &corrupt).unwrap();
     let (again, stderr) = bake_json(&out);
     assert_eq!(again["reused"].as_bool(), Some(false));
-    assert!(stderr.contains("checksum") && stderr.contains("rebuilding"), "{stderr}");
+    assert!(
+        stderr.contains("checksum") && stderr.contains("rebuilding"),
+        "{stderr}"
+    );
     // Truncated.
     std::fs::write(&path, &good[..good.len() / 2]).unwrap();
     let (again, stderr) = bake_json(&out);
@@ -61,7 +98,10 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     std::fs::write(&path, &old).unwrap();
     let (again, stderr) = bake_json(&out);
     assert_eq!(again["reused"].as_bool(), Some(false));
-    assert!(stderr.contains("version 0") && stderr.contains("rebuilding"), "{stderr}");
+    assert!(
+        stderr.contains("version 0") && stderr.contains("rebuilding"),
+        "{stderr}"
+    );
     // Not a bake at all.
     std::fs::write(&path, b"hello").unwrap();
     let (_, stderr) = bake_json(&out);
@@ -77,9 +117,22 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     let refined = ra.apply(&scene.mesh).unwrap();
     assert_eq!(refined.positions.len(), a.vertex_count());
     let area = |m: &glint::scene::Mesh| -> f64 {
-        m.triangles.iter().map(|t| (m.positions[t[1] as usize] - m.positions[t[0] as usize]).cross(m.positions[t[2] as usize] - m.positions[t[0] as usize]).length() as f64 * 0.5).sum()
+        m.triangles
+            .iter()
+            .map(|t| {
+                (m.positions[t[1] as usize] - m.positions[t[0] as usize])
+                    .cross(m.positions[t[2] as usize] - m.positions[t[0] as usize])
+                    .length() as f64
+                    * 0.5
+            })
+            .sum()
     };
-    assert!((area(&refined) / area(&scene.mesh) - 1.0).abs() < 1e-5, "{} vs {}", area(&refined), area(&scene.mesh));
+    assert!(
+        (area(&refined) / area(&scene.mesh) - 1.0).abs() < 1e-5,
+        "{} vs {}",
+        area(&refined),
+        area(&scene.mesh)
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -90,7 +143,11 @@ fn decode_rejects_every_truncation() {
     bake_json(&out);
     let good = std::fs::read(out.join("bake.glint")).unwrap();
     for cut in (0..good.len()).step_by(good.len() / 97 + 1) {
-        assert!(file::decode(Path::new("x"), &good[..cut]).is_err(), "accepted {cut} of {} bytes", good.len());
+        assert!(
+            file::decode(Path::new("x"), &good[..cut]).is_err(),
+            "accepted {cut} of {} bytes",
+            good.len()
+        );
     }
     assert!(file::decode(Path::new("x"), &good).is_ok());
     std::fs::remove_dir_all(&dir).unwrap();
@@ -100,10 +157,23 @@ fn decode_rejects_every_truncation() {
 fn baking_the_view_first_gives_the_same_transfer() {
     let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
     let env = glint::env::load(&common::assets().join("hdr/small/courtyard_512.exr")).unwrap();
-    let baker = Baker::new(&scene, &env, BakeSettings { resolution: Some(32), ..BakeSettings::default() }).unwrap();
+    let baker = Baker::new(
+        &scene,
+        &env,
+        BakeSettings {
+            resolution: Some(32),
+            ..BakeSettings::default()
+        },
+    )
+    .unwrap();
     let camera = &scene.cameras[0];
     let first = visible_vertices(&scene.mesh, camera, 160, 120);
-    assert!(!first.is_empty() && first.len() < scene.mesh.positions.len(), "{} of {}", first.len(), scene.mesh.positions.len());
+    assert!(
+        !first.is_empty() && first.len() < scene.mesh.positions.len(),
+        "{} of {}",
+        first.len(),
+        scene.mesh.positions.len()
+    );
     // Only the view's vertices: the others get empty cuts (not needed by this view).
     // As the app does it ([`Baker::bake_set`], with vertex sampling).
     let mut per_vertex = vec![Default::default(); scene.mesh.positions.len()];
@@ -111,11 +181,21 @@ fn baking_the_view_first_gives_the_same_transfer() {
     baker.bake_set(&first, &mut per_vertex, &mut baked, &|_| {});
     let partial = Cuts::from_vertex_cuts(&per_vertex);
     let full = baker.bake_all(None, &|_| {});
-    let lobes = LobeSet::new(LobeLayout::Isotropic { count: 24 }, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let lobes = LobeSet::new(
+        LobeLayout::Isotropic { count: 24 },
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
+    )
+    .unwrap();
     let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
-    let a = TransferContext::new(&scene.mesh, &partial, &baker.tree, &lobes, None, None).compute(&light, camera, 160, 120, 0.04);
-    let b = TransferContext::new(&scene.mesh, &full.cuts, &baker.tree, &lobes, None, None).compute(&light, camera, 160, 120, 0.04);
+    let a = TransferContext::new(&scene.mesh, &partial, &baker.tree, &lobes, None, None)
+        .compute(&light, camera, 160, 120, 0.04);
+    let b = TransferContext::new(&scene.mesh, &full.cuts, &baker.tree, &lobes, None, None)
+        .compute(&light, camera, 160, 120, 0.04);
     assert_eq!(a.t, b.t);
     assert_eq!(a.irradiance, b.irradiance);
-    println!("first fit possible after {} of {} vertices", first.len(), scene.mesh.positions.len());
+    println!(
+        "first fit possible after {} of {} vertices",
+        first.len(),
+        scene.mesh.positions.len()
+    );
 }

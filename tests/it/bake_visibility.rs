@@ -1,6 +1,6 @@
-//! The bake's visibility cuts against brute-force per-direction ray casting (every above-horizon leaf
-//! direction traced from every vertex), on the self-occluding teapot; and the "no occluder" decision on
-//! a sphere.
+//! The bake's visibility cuts against brute-force per-direction ray casting (every above-horizon
+//! leaf direction traced from every vertex), on the self-occluding teapot; and the "no occluder"
+//! decision on a sphere.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -12,7 +12,12 @@ use glint::env::EnvMap;
 fn settings(resolution: usize, epsilon: f64) -> BakeSettings {
     BakeSettings {
         resolution: Some(resolution),
-        cut: CutSettings { epsilon, max_cut: 100_000, cell_leaves: 1, ..CutSettings::default() },
+        cut: CutSettings {
+            epsilon,
+            max_cut: 100_000,
+            cell_leaves: 1,
+            ..CutSettings::default()
+        },
         cell_deg: Some(0.0),
         ..BakeSettings::default()
     }
@@ -33,7 +38,11 @@ fn compare(baker: &Baker, bake: &glint::bake::Bake) -> (f64, f64, f64) {
         let brute: Vec<f64> = (0..tree.leaf_count())
             .map(|i| {
                 let d = tree.leaf_directions()[i];
-                if d.dot(n) <= 0.0 || baker.tracer.occluded(o, d.as_vec3().into()) { 0.0 } else { 1.0 }
+                if d.dot(n) <= 0.0 || baker.tracer.occluded(o, d.as_vec3().into()) {
+                    0.0
+                } else {
+                    1.0
+                }
             })
             .collect();
         let mut covered = vec![false; tree.leaf_count()];
@@ -44,10 +53,14 @@ fn compare(baker: &Baker, bake: &glint::bake::Bake) -> (f64, f64, f64) {
             for i in range.clone() {
                 assert!(!covered[i], "vertex {v}: leaf {i} in two cut nodes");
                 covered[i] = true;
-                // Ω_i c_i as the bake defines it: the leaf's exact cosine integral max(moment·n, 0); leaves
-                // whose centre is below the plane (horizon slivers of weight ~1e-6, whose centre ray runs
-                // into the surface) are left out of the comparison.
-                let wc = if tree.leaf_directions()[i].dot(n) > 0.0 { tree.leaf_moments()[i].dot(n).max(0.0) } else { 0.0 };
+                // Ω_i c_i as the bake defines it: the leaf's exact cosine integral max(moment·n,
+                // 0); leaves whose centre is below the plane (horizon slivers of weight ~1e-6,
+                // whose centre ray runs into the surface) are left out of the comparison.
+                let wc = if tree.leaf_directions()[i].dot(n) > 0.0 {
+                    tree.leaf_moments()[i].dot(n).max(0.0)
+                } else {
+                    0.0
+                };
                 w += wc;
                 wv += wc * brute[i];
                 dev += wc * (brute[i] - vis as f64).abs();
@@ -59,14 +72,21 @@ fn compare(baker: &Baker, bake: &glint::bake::Bake) -> (f64, f64, f64) {
             total_dev += dev;
         }
         for i in 0..tree.leaf_count() {
-            // Above the horizon by both its centre and its exact moment (leaves astride the horizon, of
-            // weight ~1e-6, may go either way).
+            // Above the horizon by both its centre and its exact moment (leaves astride the
+            // horizon, of weight ~1e-6, may go either way).
             if tree.leaf_directions()[i].dot(n) > 0.0 && tree.leaf_moments()[i].dot(n) > 0.0 {
-                assert!(covered[i], "vertex {v}: above-horizon leaf {i} not in the cut");
+                assert!(
+                    covered[i],
+                    "vertex {v}: above-horizon leaf {i} not in the cut"
+                );
             }
         }
     }
-    (worst_mean, worst_node_dev, total_dev / bake.cuts.vertex_count() as f64)
+    (
+        worst_mean,
+        worst_node_dev,
+        total_dev / bake.cuts.vertex_count() as f64,
+    )
 }
 
 #[test]
@@ -76,7 +96,10 @@ fn teapot_cuts_match_brute_force_ray_casting_and_error_falls_with_epsilon() {
     let mut previous = f64::INFINITY;
     for epsilon in [0.1, 0.03, 0.01, 0.0] {
         let baker = Baker::new(&scene, &env, settings(16, epsilon)).unwrap();
-        assert!(baker.decisions.trace_visibility, "the teapot occludes itself");
+        assert!(
+            baker.decisions.trace_visibility,
+            "the teapot occludes itself"
+        );
         let bake = baker.bake_all(None, &|_| {});
         let (worst_mean, worst_node_dev, mean_dev) = compare(&baker, &bake);
         println!(
@@ -85,14 +108,26 @@ fn teapot_cuts_match_brute_force_ray_casting_and_error_falls_with_epsilon() {
             bake.stats.rays_traced as f64 / bake.stats.vertices as f64
         );
         // Each node's mean Ṽ agrees with brute force within ε (u16 quantisation aside)...
-        assert!(worst_mean <= epsilon + 2e-5, "ε={epsilon}: node means off by {worst_mean}");
+        assert!(
+            worst_mean <= epsilon + 2e-5,
+            "ε={epsilon}: node means off by {worst_mean}"
+        );
         // ...its mean |Ṽ| reconstruction error is within ε...
-        assert!(worst_node_dev <= epsilon + 2e-5, "ε={epsilon}: node error {worst_node_dev}");
+        assert!(
+            worst_node_dev <= epsilon + 2e-5,
+            "ε={epsilon}: node error {worst_node_dev}"
+        );
         // ...and the total error falls as ε falls (to zero at ε = 0).
-        assert!(mean_dev <= previous + 1e-12, "error did not fall: {mean_dev} > {previous}");
+        assert!(
+            mean_dev <= previous + 1e-12,
+            "error did not fall: {mean_dev} > {previous}"
+        );
         previous = mean_dev;
     }
-    assert!(previous < 1e-4, "ε = 0 must reproduce brute force, error {previous}");
+    assert!(
+        previous < 1e-4,
+        "ε = 0 must reproduce brute force, error {previous}"
+    );
 }
 
 #[test]
@@ -100,25 +135,46 @@ fn a_sphere_traces_no_rays_and_matches_what_tracing_gives() {
     let scene = common::scene_from_mesh(common::uv_sphere(0.5, 48, 24, false));
     let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
     let baker = Baker::new(&scene, &env, settings(16, 0.02)).unwrap();
-    assert!(!baker.decisions.trace_visibility, "{}", baker.decisions.trace_reason);
+    assert!(
+        !baker.decisions.trace_visibility,
+        "{}",
+        baker.decisions.trace_reason
+    );
     let bake = baker.bake_all(None, &|_| {});
     assert_eq!(bake.stats.rays_traced, 0);
-    // Forced tracing: the cone test alone proves every vertex's hemisphere free, so it casts no rays
-    // either, and the cuts say V = 1 everywhere.
-    let forced = Baker::new(&scene, &env, BakeSettings { force_trace: true, ..settings(16, 0.02) }).unwrap();
+    // Forced tracing: the cone test alone proves every vertex's hemisphere free, so it casts no
+    // rays either, and the cuts say V = 1 everywhere.
+    let forced = Baker::new(
+        &scene,
+        &env,
+        BakeSettings {
+            force_trace: true,
+            ..settings(16, 0.02)
+        },
+    )
+    .unwrap();
     let traced = forced.bake_all(None, &|_| {});
     let (worst_mean, _, mean_dev) = compare(&forced, &traced);
     // Only horizon slivers (leaves whose centre is below the plane but whose moment is not) differ.
-    assert!(worst_mean < 2e-5 && mean_dev < 1e-5, "traced sphere: {worst_mean} {mean_dev}");
+    assert!(
+        worst_mean < 2e-5 && mean_dev < 1e-5,
+        "traced sphere: {worst_mean} {mean_dev}"
+    );
     for v in 0..bake.cuts.vertex_count() {
         let all_visible = traced.cuts.cut(v).all(|(_, vis)| vis == 1.0);
-        assert!(all_visible, "vertex {v}: a convex object's vertex sees occlusion");
+        assert!(
+            all_visible,
+            "vertex {v}: a convex object's vertex sees occlusion"
+        );
     }
-    println!("sphere: {} vertices, 0 rays; forced tracing: {} rays", bake.stats.vertices, traced.stats.rays_traced);
+    println!(
+        "sphere: {} vertices, 0 rays; forced tracing: {} rays",
+        bake.stats.vertices, traced.stats.rays_traced
+    );
 }
 
-/// Irradiance of the environment's luminance at every vertex from a bake's cuts: Σ over cut nodes of
-/// V × Σ_leaves L·max(moment·n, 0) (what the transfer sums, with the vertex's own normal).
+/// Irradiance of the environment's luminance at every vertex from a bake's cuts: Σ over cut nodes
+/// of V × Σ_leaves L·max(moment·n, 0) (what the transfer sums, with the vertex's own normal).
 fn cut_irradiance(baker: &Baker, bake: &glint::bake::Bake, luminance: &[f64]) -> Vec<f64> {
     let tree = &baker.tree;
     (0..bake.cuts.vertex_count())
@@ -129,7 +185,10 @@ fn cut_irradiance(baker: &Baker, bake: &glint::bake::Bake, luminance: &[f64]) ->
                 .map(|(k, vis)| {
                     let node = tree.nodes()[k as usize];
                     let range = node.first as usize..(node.first + node.count) as usize;
-                    vis as f64 * range.map(|l| luminance[l] * tree.leaf_moments()[l].dot(n).max(0.0)).sum::<f64>()
+                    vis as f64
+                        * range
+                            .map(|l| luminance[l] * tree.leaf_moments()[l].dot(n).max(0.0))
+                            .sum::<f64>()
                 })
                 .sum()
         })
@@ -151,15 +210,32 @@ fn the_visibility_cell_decision_follows_the_light_and_its_estimate_matches_whole
         let d = baker.decisions.clone();
         println!("{map}: {}° ({})", d.cell_deg, d.cell_reason);
         assert_eq!(d.cell_probe_errors.len(), CELL_CANDIDATES_DEG.len());
-        assert_eq!(baker.settings.cut.cell_leaves, glint::bake::decisions::cell_leaves(d.resolution, d.cell_deg));
+        assert_eq!(
+            baker.settings.cut.cell_leaves,
+            glint::bake::decisions::cell_leaves(d.resolution, d.cell_deg)
+        );
         decided.push(d.cell_deg);
         boundary.push(d.boundary_levels);
         assert_eq!(baker.settings.cut.boundary_levels, d.boundary_levels);
         // Whole bakes at each candidate and with a ray per direction, at the decided resolution.
         let radiance = glint::light::texel_radiance(&env, &baker.set, 0.0);
-        let luminance: Vec<f64> = baker.tree.leaf_texels().iter().map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0).collect();
+        let luminance: Vec<f64> = baker
+            .tree
+            .leaf_texels()
+            .iter()
+            .map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0)
+            .collect();
         let bake_with = |deg: f64| {
-            let b = Baker::new(&scene, &env, BakeSettings { resolution: Some(d.resolution), cell_deg: Some(deg), ..BakeSettings::default() }).unwrap();
+            let b = Baker::new(
+                &scene,
+                &env,
+                BakeSettings {
+                    resolution: Some(d.resolution),
+                    cell_deg: Some(deg),
+                    ..BakeSettings::default()
+                },
+            )
+            .unwrap();
             let bake = b.bake_all(None, &|_| {});
             cut_irradiance(&b, &bake, &luminance)
         };
@@ -167,60 +243,114 @@ fn the_visibility_cell_decision_follows_the_light_and_its_estimate_matches_whole
         let den: f64 = exact.iter().map(|e| e * e).sum();
         for &(deg, estimate) in &d.cell_probe_errors {
             let e = bake_with(deg);
-            let whole = (e.iter().zip(&exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / den).sqrt();
-            println!("  {deg}°: probe estimate {:.2} %, whole bake {:.2} %", estimate * 100.0, whole * 100.0);
-            assert!(estimate < 2.0 * whole + 0.003 && whole < 2.0 * estimate + 0.003, "{map} {deg}°: estimate {estimate}, whole bake {whole}");
+            let whole = (e
+                .iter()
+                .zip(&exact)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                / den)
+                .sqrt();
+            println!(
+                "  {deg}°: probe estimate {:.2} %, whole bake {:.2} %",
+                estimate * 100.0,
+                whole * 100.0
+            );
+            assert!(
+                estimate < 2.0 * whole + 0.003 && whole < 2.0 * estimate + 0.003,
+                "{map} {deg}°: estimate {estimate}, whole bake {whole}"
+            );
             if deg == d.cell_deg && estimate <= CELL_TOLERANCE {
-                assert!(whole <= 1.5 * CELL_TOLERANCE, "{map}: chose {deg}° but the whole bake is {whole} off");
+                assert!(
+                    whole <= 1.5 * CELL_TOLERANCE,
+                    "{map}: chose {deg}° but the whole bake is {whole} off"
+                );
             }
         }
     }
-    assert_eq!(decided, vec![5.625, 11.25], "studio needs the finer cells, courtyard does not");
-    assert_eq!(boundary, vec![glint::bake::decisions::BOUNDARY_LEVELS, 0], "studio's sharp shadows get boundary refinement, courtyard's soft ones do not");
+    assert_eq!(
+        decided,
+        vec![5.625, 11.25],
+        "studio needs the finer cells, courtyard does not"
+    );
+    assert_eq!(
+        boundary,
+        vec![glint::bake::decisions::BOUNDARY_LEVELS, 0],
+        "studio's sharp shadows get boundary refinement, courtyard's soft ones do not"
+    );
 }
 
-/// Boundary refinement (decision (d)): cells beside a cell of the other visibility traced again at half
-/// and a quarter of the width. Against a ray per direction (brute force at every vertex of the teapot
-/// under a uniform sky, every leaf counted): the cuts' error falls with each level, two levels come
-/// close to tracing every direction, for a fraction of the rays.
+/// Boundary refinement (decision (d)): cells beside a cell of the other visibility traced again at
+/// half and a quarter of the width. Against a ray per direction (brute force at every vertex of the
+/// teapot under a uniform sky, every leaf counted): the cuts' error falls with each level, two
+/// levels come close to tracing every direction, for a fraction of the rays.
 #[test]
 fn boundary_refinement_resolves_shadow_edges_for_a_fraction_of_the_rays() {
     let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
     let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
     let bake_with = |cell_deg: f64, levels: u32| {
-        let settings = BakeSettings { resolution: Some(64), cell_deg: Some(cell_deg), boundary_levels: Some(levels), ..BakeSettings::default() };
+        let settings = BakeSettings {
+            resolution: Some(64),
+            cell_deg: Some(cell_deg),
+            boundary_levels: Some(levels),
+            ..BakeSettings::default()
+        };
         let baker = Baker::new(&scene, &env, settings).unwrap();
         assert_eq!(baker.settings.cut.boundary_levels, levels);
-        assert!(baker.decisions.boundary_reason.contains("explicitly"), "{}", baker.decisions.boundary_reason);
+        assert!(
+            baker.decisions.boundary_reason.contains("explicitly"),
+            "{}",
+            baker.decisions.boundary_reason
+        );
         let bake = baker.bake_all(None, &|_| {});
         let (_, _, mean_dev) = compare(&baker, &bake);
         (mean_dev, bake.stats.rays_traced)
     };
     let (every, every_rays) = bake_with(0.0, 0);
     let runs: Vec<(f64, u64)> = (0..=2).map(|levels| bake_with(5.625, levels)).collect();
-    println!("teapot, uniform sky, 6×64² directions: every direction traced: mean error {every:.5} sr, {every_rays} rays");
+    println!(
+        "teapot, uniform sky, 6×64² directions: every direction traced: mean error {every:.5} sr, {every_rays} rays"
+    );
     for (levels, (dev, rays)) in runs.iter().enumerate() {
         println!("  5.625° cells, {levels} boundary level(s): mean error {dev:.5} sr, {rays} rays");
     }
     // Each level lowers the error, with more rays.
-    assert!(runs[1].0 < 0.8 * runs[0].0 && runs[2].0 < 0.8 * runs[1].0, "{runs:?}");
+    assert!(
+        runs[1].0 < 0.8 * runs[0].0 && runs[2].0 < 0.8 * runs[1].0,
+        "{runs:?}"
+    );
     assert!(runs[0].1 < runs[1].1 && runs[1].1 < runs[2].1, "{runs:?}");
-    // Two levels remove most of the cells' error (every leaf traced is the floor: ε's merges) for at
-    // most half the rays of tracing every direction.
-    assert!(runs[2].0 - every < 0.35 * (runs[0].0 - every), "two levels: {} vs {} unrefined, {} every direction", runs[2].0, runs[0].0, every);
-    assert!(2 * runs[2].1 < every_rays, "{} rays vs {every_rays}", runs[2].1);
-    // Under the studio's lights (decided: two levels) every cut still partitions the leaves above the
-    // horizon: disjoint nodes in leaf order, values in [0, 1].
+    // Two levels remove most of the cells' error (every leaf traced is the floor: ε's merges) for
+    // at most half the rays of tracing every direction.
+    assert!(
+        runs[2].0 - every < 0.35 * (runs[0].0 - every),
+        "two levels: {} vs {} unrefined, {} every direction",
+        runs[2].0,
+        runs[0].0,
+        every
+    );
+    assert!(
+        2 * runs[2].1 < every_rays,
+        "{} rays vs {every_rays}",
+        runs[2].1
+    );
+    // Under the studio's lights (decided: two levels) every cut still partitions the leaves above
+    // the horizon: disjoint nodes in leaf order, values in [0, 1].
     let bunny = glint::scene::import(&common::assets().join("glb/bunny.glb")).unwrap();
     let studio = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
     let baker = Baker::new(&bunny, &studio, BakeSettings::default()).unwrap();
-    assert_eq!(baker.decisions.boundary_levels, glint::bake::decisions::BOUNDARY_LEVELS);
+    assert_eq!(
+        baker.decisions.boundary_levels,
+        glint::bake::decisions::BOUNDARY_LEVELS
+    );
     let bake = baker.bake_all(None, &|_| {});
     for v in 0..bake.cuts.vertex_count() {
         let mut end = 0u32;
         for (k, vis) in bake.cuts.cut(v) {
             let node = baker.tree.nodes()[k as usize];
-            assert!(node.first >= end, "vertex {v}: node {k} overlaps or is out of order");
+            assert!(
+                node.first >= end,
+                "vertex {v}: node {k} overlaps or is out of order"
+            );
             assert!((0.0..=1.0).contains(&vis), "vertex {v}: V = {vis}");
             end = node.first + node.count;
         }
@@ -232,21 +362,44 @@ fn boundary_refinement_resolves_shadow_edges_for_a_fraction_of_the_rays() {
 fn explicit_and_invalid_cell_sizes() {
     let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
     let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
-    let baker = Baker::new(&scene, &env, BakeSettings { resolution: Some(32), cell_deg: Some(22.5), ..BakeSettings::default() }).unwrap();
+    let baker = Baker::new(
+        &scene,
+        &env,
+        BakeSettings {
+            resolution: Some(32),
+            cell_deg: Some(22.5),
+            ..BakeSettings::default()
+        },
+    )
+    .unwrap();
     assert_eq!(baker.decisions.cell_deg, 22.5);
-    assert_eq!(baker.settings.cut.cell_leaves, 64, "(32 · 22.5 / 90)² leaves");
+    assert_eq!(
+        baker.settings.cut.cell_leaves, 64,
+        "(32 · 22.5 / 90)² leaves"
+    );
     assert!(baker.decisions.cell_reason.contains("explicitly"));
     for bad in [-1.0, f64::NAN, f64::INFINITY] {
-        let err = Baker::new(&scene, &env, BakeSettings { cell_deg: Some(bad), ..BakeSettings::default() }).err().expect("refused").to_string();
+        let err = Baker::new(
+            &scene,
+            &env,
+            BakeSettings {
+                cell_deg: Some(bad),
+                ..BakeSettings::default()
+            },
+        )
+        .err()
+        .expect("refused")
+        .to_string();
         assert!(err.contains("cell") && !err.contains('\n'), "{err}");
     }
 }
 
-/// Vertex sampling (decision (f)) on the dense dragon_100k under courtyard (default settings): at 400
-/// vertices spread over the mesh, each cut's visibility against a ray per leaf direction (brute
-/// force), as the luminance- and cosine-weighted mean |V − V_true| over the hemisphere. Interpolated
-/// vertices must be about as close to the truth as tracing them would have been, and baking a set in
-/// two parts must give what one part gives (the app bakes the view's vertices first).
+/// Vertex sampling (decision (f)) on the dense dragon_100k under courtyard (default settings): at
+/// 400 vertices spread over the mesh, each cut's visibility against a ray per leaf direction (brute
+/// force), as the luminance- and cosine-weighted mean |V − V_true| over the hemisphere.
+/// Interpolated vertices must be about as close to the truth as tracing them would have been, and
+/// baking a set in two parts must give what one part gives (the app bakes the view's vertices
+/// first).
 #[test]
 fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
     use glam::Vec3A;
@@ -258,7 +411,11 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
     let tracing = Baker::new(&scene, &env, every).unwrap();
     let tree = &baker.tree;
     let light = glint::light::LightSums::new(&env, &baker.set, tree, 0.0);
-    let luminance: Vec<f64> = light.leaf_radiance().iter().map(|c| (c[0] + c[1] + c[2]) / 3.0).collect();
+    let luminance: Vec<f64> = light
+        .leaf_radiance()
+        .iter()
+        .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+        .collect();
     let n = scene.mesh.positions.len();
     let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
     let mut per_vertex = vec![glint::bake::VertexCut::default(); n];
@@ -280,7 +437,14 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
             if w <= 0.0 {
                 continue;
             }
-            let truth = if baker.tracer.occluded(origin.as_vec3().into(), Vec3A::from(d.as_vec3())) { 0.0 } else { 1.0 };
+            let truth = if baker
+                .tracer
+                .occluded(origin.as_vec3().into(), Vec3A::from(d.as_vec3()))
+            {
+                0.0
+            } else {
+                1.0
+            };
             wrong += w * (leaf_v[l] as f64 - truth).abs();
             total += w;
         }
@@ -299,13 +463,18 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
         if cut.interpolated {
             assert_eq!(cut.rays, 0);
             interpolated += 1;
-            (e_interp, e_traced_there, w_interp) = (e_interp + e, e_traced_there + et, w_interp + w);
+            (e_interp, e_traced_there, w_interp) =
+                (e_interp + e, e_traced_there + et, w_interp + w);
         } else if cut.rays < traced[i].rays {
             // Traced, with the cells its sampled neighbours all agree on taken from them.
             assisted += 1;
-            (e_assist, e_traced_assist, w_assist) = (e_assist + e, e_traced_assist + et, w_assist + w);
+            (e_assist, e_traced_assist, w_assist) =
+                (e_assist + e, e_traced_assist + et, w_assist + w);
         } else {
-            assert_eq!(cut.entries, traced[i].entries, "vertex {v}: traced alone, so as tracing gives");
+            assert_eq!(
+                cut.entries, traced[i].entries,
+                "vertex {v}: traced alone, so as tracing gives"
+            );
             same += 1;
         }
     }
@@ -322,12 +491,28 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
         e_all * 100.0,
         e_all_traced * 100.0
     );
-    // Measured: 18 % of the vertices interpolated; 1.2 % there against 1.0 % traced; 2.95 % against 2.90 %.
-    assert!(interpolated >= sample.len() / 10, "only {interpolated} interpolated");
-    assert!(e_interp <= 1.5 * e_traced_there + 0.005, "interpolated {e_interp} against traced {e_traced_there}");
-    assert!(assisted >= sample.len() / 10, "only {assisted} traced with agreed cells");
-    assert!(e_assist <= 1.1 * e_traced_assist + 0.001, "with agreed cells {e_assist} against traced {e_traced_assist}");
-    assert!(e_all <= 1.05 * e_all_traced, "all {e_all} against {e_all_traced}");
+    // Measured: 18 % of the vertices interpolated; 1.2 % there against 1.0 % traced; 2.95 % against
+    // 2.90 %.
+    assert!(
+        interpolated >= sample.len() / 10,
+        "only {interpolated} interpolated"
+    );
+    assert!(
+        e_interp <= 1.5 * e_traced_there + 0.005,
+        "interpolated {e_interp} against traced {e_traced_there}"
+    );
+    assert!(
+        assisted >= sample.len() / 10,
+        "only {assisted} traced with agreed cells"
+    );
+    assert!(
+        e_assist <= 1.1 * e_traced_assist + 0.001,
+        "with agreed cells {e_assist} against traced {e_traced_assist}"
+    );
+    assert!(
+        e_all <= 1.05 * e_all_traced,
+        "all {e_all} against {e_all_traced}"
+    );
     // The same set in two parts, in another order: the same cuts.
     let mut again = vec![glint::bake::VertexCut::default(); n];
     let mut baked_again = vec![false; n];
@@ -336,14 +521,17 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
     baker.bake_set(&reversed, &mut again, &mut baked_again, &|_| {});
     baker.bake_set(a, &mut again, &mut baked_again, &|_| {});
     for &v in &sample {
-        assert_eq!(again[v as usize], per_vertex[v as usize], "vertex {v} depends on how the set was split");
+        assert_eq!(
+            again[v as usize], per_vertex[v as usize],
+            "vertex {v} depends on how the set was split"
+        );
     }
 }
 
-/// The cap on a cut's size relaxes ε for the merge only: a capped cut is coarser but keeps, per vertex,
-/// the cosine-weighted visible fraction (the irradiance of a uniform sky) of the uncapped cut. (Before
-/// this held, a relaxed ε of 0.13 let the blind near-horizon guess take the whole sphere as one node
-/// with V = ½: suzanne's transfer at 128 per side went 11 % off.)
+/// The cap on a cut's size relaxes ε for the merge only: a capped cut is coarser but keeps, per
+/// vertex, the cosine-weighted visible fraction (the irradiance of a uniform sky) of the uncapped
+/// cut. (Before this held, a relaxed ε of 0.13 let the blind near-horizon guess take the whole
+/// sphere as one node with V = ½: suzanne's transfer at 128 per side went 11 % off.)
 #[test]
 fn a_capped_cut_keeps_the_irradiance_of_the_uncapped_one() {
     let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
@@ -360,10 +548,19 @@ fn a_capped_cut_keeps_the_irradiance_of_the_uncapped_one() {
     let (free, capped_none, largest) = irradiance(100_000);
     let (capped, capped_count, capped_largest) = irradiance(16);
     assert_eq!(capped_none, 0);
-    assert!(largest > 64 && capped_count > free.len() / 4, "cap not exercised: {capped_count} capped, largest cut {largest}");
-    println!("{capped_count} of {} vertices capped, largest cut {largest} → {capped_largest}", free.len());
+    assert!(
+        largest > 64 && capped_count > free.len() / 4,
+        "cap not exercised: {capped_count} capped, largest cut {largest}"
+    );
+    println!(
+        "{capped_count} of {} vertices capped, largest cut {largest} → {capped_largest}",
+        free.len()
+    );
     for (v, (a, b)) in free.iter().zip(&capped).enumerate() {
         // V is stored as u16 (7.6e-6) per node: a few nodes' rounding apart.
-        assert!((a - b).abs() <= 1e-4 * a.max(1.0), "vertex {v}: {b} capped against {a}");
+        assert!(
+            (a - b).abs() <= 1e-4 * a.max(1.0),
+            "vertex {v}: {b} capped against {a}"
+        );
     }
 }

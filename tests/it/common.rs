@@ -46,7 +46,11 @@ pub fn scene_from_mesh(mesh: Mesh) -> Scene {
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
         normals: AttributeSource::Present,
-        tangents: if mesh.tangents.is_some() { AttributeSource::Present } else { AttributeSource::Absent },
+        tangents: if mesh.tangents.is_some() {
+            AttributeSource::Present
+        } else {
+            AttributeSource::Absent
+        },
         uvs: AttributeSource::Absent,
     };
     Scene {
@@ -72,7 +76,11 @@ pub fn uv_sphere(r: f32, segments: u32, rings: u32, tangents: bool) -> Mesh {
         let theta = std::f32::consts::PI * i as f32 / rings as f32;
         for j in 0..segments {
             let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
+            let n = Vec3::new(
+                theta.sin() * phi.sin(),
+                theta.cos(),
+                theta.sin() * phi.cos(),
+            );
             positions.push(n * r);
             normals.push(n);
             tan.push(Vec4::new(phi.cos(), 0.0, -phi.sin(), 1.0));
@@ -93,14 +101,22 @@ pub fn uv_sphere(r: f32, segments: u32, rings: u32, tangents: bool) -> Mesh {
             }
         }
     }
-    Mesh { positions, normals, tangents: tangents.then_some(tan), uvs: None, triangles }
+    Mesh {
+        positions,
+        normals,
+        tangents: tangents.then_some(tan),
+        uvs: None,
+        triangles,
+    }
 }
 
 /// Clarabel (an interior-point solver sharing no code with glint's) on
 /// min ½cᵀHc + qᵀc s.t. c ≥ 0, Gc ≤ u; H n×n and G m×n row-major. Returns c.
 pub fn clarabel_qp(h: &[f64], q: &[f64], g: &[f64], u: &[f64], n: usize, m: usize) -> Vec<f64> {
     use clarabel::algebra::CscMatrix;
-    use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT};
+    use clarabel::solver::{
+        DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, SupportedConeT,
+    };
     let mut colptr = vec![0];
     let mut rowval = Vec::new();
     let mut nzval = Vec::new();
@@ -125,13 +141,25 @@ pub fn clarabel_qp(h: &[f64], q: &[f64], g: &[f64], u: &[f64], n: usize, m: usiz
         colptr.push(rowval.len());
     }
     let a = CscMatrix::new(n + m, n, colptr, rowval, nzval);
-    let b: Vec<f64> = std::iter::repeat_n(0.0, n).chain(u.iter().copied()).collect();
+    let b: Vec<f64> = std::iter::repeat_n(0.0, n)
+        .chain(u.iter().copied())
+        .collect();
     let cones: [SupportedConeT<f64>; 1] = [NonnegativeConeT(n + m)];
-    let settings = DefaultSettings { verbose: false, tol_gap_abs: 1e-10, tol_gap_rel: 1e-10, tol_feas: 1e-10, max_iter: 200, ..DefaultSettings::default() };
+    let settings = DefaultSettings {
+        verbose: false,
+        tol_gap_abs: 1e-10,
+        tol_gap_rel: 1e-10,
+        tol_feas: 1e-10,
+        max_iter: 200,
+        ..DefaultSettings::default()
+    };
     let mut solver = DefaultSolver::new(&p, q, &a, &b, &cones, settings).expect("clarabel setup");
     solver.solve();
     let status = solver.solution.status;
-    assert!(matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved), "clarabel: {status:?}");
+    assert!(
+        matches!(status, SolverStatus::Solved | SolverStatus::AlmostSolved),
+        "clarabel: {status:?}"
+    );
     solver.solution.x.clone()
 }
 
@@ -149,7 +177,10 @@ pub fn qp_objective(h: &[f64], q: &[f64], c: &[f64], n: usize) -> f64 {
 #[macro_export]
 macro_rules! run_glint {
     ($args:expr) => {
-        std::process::Command::new(env!("CARGO_BIN_EXE_glint")).args($args).output().expect("run glint")
+        std::process::Command::new(env!("CARGO_BIN_EXE_glint"))
+            .args($args)
+            .output()
+            .expect("run glint")
     };
 }
 

@@ -1,13 +1,14 @@
-//! Determinism of the binary across thread counts: `glint bake` and `glint fit` run on the same inputs
-//! with `RAYON_NUM_THREADS=1` and `=2` must write the same bytes.
+//! Determinism of the binary across thread counts: `glint bake` and `glint fit` run on the same
+//! inputs with `RAYON_NUM_THREADS=1` and `=2` must write the same bytes.
 //!
-//! Excluded, because they are documented timings (wall-clock seconds, different on every run even with
-//! one thread): the bake header's `stats.seconds` and `stats.decision_seconds` (`BakeStats`, in
-//! `bake.glint`'s JSON header and in `bake.json`) and the material's `fit.solve_seconds` (`FitStats`).
-//! Everything else is compared exactly: the cut data of `bake.glint` (offsets, nodes, visibility) byte
-//! for byte, the rest of the bake header and `bake.json` as JSON values, and the material file line by
-//! line with only its `"solve_seconds"` line left out. (The bake file's trailing checksum covers the
-//! header, so it differs exactly when the timings do; it is not compared.)
+//! Excluded, because they are documented timings (wall-clock seconds, different on every run even
+//! with one thread): the bake header's `stats.seconds` and `stats.decision_seconds` (`BakeStats`,
+//! in `bake.glint`'s JSON header and in `bake.json`) and the material's `fit.solve_seconds`
+//! (`FitStats`). Everything else is compared exactly: the cut data of `bake.glint` (offsets, nodes,
+//! visibility) byte for byte, the rest of the bake header and `bake.json` as JSON values, and the
+//! material file line by line with only its `"solve_seconds"` line left out. (The bake file's
+//! trailing checksum covers the header, so it differs exactly when the timings do; it is not
+//! compared.)
 
 use crate::common;
 
@@ -20,22 +21,39 @@ const TIMINGS_BAKE: [&str; 2] = ["seconds", "decision_seconds"];
 const TIMING_MATERIAL: &str = "solve_seconds";
 
 fn glint(threads: usize, args: &[&str]) {
-    let o = Command::new(env!("CARGO_BIN_EXE_glint")).args(args).env("RAYON_NUM_THREADS", threads.to_string()).output().expect("run glint");
-    assert!(o.status.success(), "glint {args:?} with {threads} thread(s): {}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .env("RAYON_NUM_THREADS", threads.to_string())
+        .output()
+        .expect("run glint");
+    assert!(
+        o.status.success(),
+        "glint {args:?} with {threads} thread(s): {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
-/// `bake.glint` split into its header (JSON, timings removed) and its cut data (bytes, no checksum).
+/// `bake.glint` split into its header (JSON, timings removed) and its cut data (bytes, no
+/// checksum).
 fn split_bake(bytes: &[u8]) -> (Value, Vec<u8>) {
     assert_eq!(&bytes[..8], b"GLINTBAK");
     let header_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let header: Value = serde_json::from_slice(&bytes[16..16 + header_len]).unwrap();
-    (without_bake_timings(header), bytes[16 + header_len..bytes.len() - 8].to_vec())
+    (
+        without_bake_timings(header),
+        bytes[16 + header_len..bytes.len() - 8].to_vec(),
+    )
 }
 
 fn without_bake_timings(mut header: Value) -> Value {
-    let stats = header["stats"].as_object_mut().expect("stats in the bake header");
+    let stats = header["stats"]
+        .as_object_mut()
+        .expect("stats in the bake header");
     for key in TIMINGS_BAKE {
-        assert!(stats.remove(key).is_some(), "the bake header has no stats.{key}");
+        assert!(
+            stats.remove(key).is_some(),
+            "the bake header has no stats.{key}"
+        );
     }
     header
 }
@@ -43,8 +61,20 @@ fn without_bake_timings(mut header: Value) -> Value {
 /// The material's lines but the timing line.
 fn material_lines(path: &Path) -> Vec<String> {
     let text = std::fs::read_to_string(path).unwrap();
-    let lines: Vec<String> = text.lines().filter(|l| !l.trim_start().starts_with(&format!("\"{TIMING_MATERIAL}\""))).map(String::from).collect();
-    assert_eq!(lines.len() + 1, text.lines().count(), "{}: expected exactly one {TIMING_MATERIAL} line", path.display());
+    let lines: Vec<String> = text
+        .lines()
+        .filter(|l| {
+            !l.trim_start()
+                .starts_with(&format!("\"{TIMING_MATERIAL}\""))
+        })
+        .map(String::from)
+        .collect();
+    assert_eq!(
+        lines.len() + 1,
+        text.lines().count(),
+        "{}: expected exactly one {TIMING_MATERIAL} line",
+        path.display()
+    );
     lines
 }
 
@@ -68,9 +98,36 @@ fn bake_and_fit_are_the_same_with_one_and_two_threads() {
         let bake = dir.join(format!("bake-{threads}"));
         let material = dir.join(format!("material-{threads}.json"));
         let started = std::time::Instant::now();
-        glint(threads, &["bake", scene.to_str().unwrap(), "--env", env.to_str().unwrap(), "--out", bake.to_str().unwrap(), "--fit-size", "40x30"]);
-        glint(threads, &["fit", bake.to_str().unwrap(), "--strokes", strokes.to_str().unwrap(), "--out", material.to_str().unwrap(), "--fit-size", "80x60"]);
-        println!("{threads} thread(s): bake and fit in {:.2} s", started.elapsed().as_secs_f64());
+        glint(
+            threads,
+            &[
+                "bake",
+                scene.to_str().unwrap(),
+                "--env",
+                env.to_str().unwrap(),
+                "--out",
+                bake.to_str().unwrap(),
+                "--fit-size",
+                "40x30",
+            ],
+        );
+        glint(
+            threads,
+            &[
+                "fit",
+                bake.to_str().unwrap(),
+                "--strokes",
+                strokes.to_str().unwrap(),
+                "--out",
+                material.to_str().unwrap(),
+                "--fit-size",
+                "80x60",
+            ],
+        );
+        println!(
+            "{threads} thread(s): bake and fit in {:.2} s",
+            started.elapsed().as_secs_f64()
+        );
         bakes.push(bake);
         materials.push(material);
     }
@@ -79,16 +136,33 @@ fn bake_and_fit_are_the_same_with_one_and_two_threads() {
     assert!(cuts1.len() > 1000, "cut data of {} bytes", cuts1.len());
     assert_eq!(h1, h2, "bake headers differ (timings excluded)");
     let first_difference = cuts1.iter().zip(&cuts2).position(|(a, b)| a != b);
-    assert!(cuts1 == cuts2, "cut data differ: {} vs {} bytes, first difference at byte {first_difference:?}", cuts1.len(), cuts2.len());
-    let json = |p: &Path| without_bake_timings(serde_json::from_str(&std::fs::read_to_string(p.join("bake.json")).unwrap()).unwrap());
-    assert_eq!(json(&bakes[0]), json(&bakes[1]), "bake.json differs (timings excluded)");
+    assert!(
+        cuts1 == cuts2,
+        "cut data differ: {} vs {} bytes, first difference at byte {first_difference:?}",
+        cuts1.len(),
+        cuts2.len()
+    );
+    let json = |p: &Path| {
+        without_bake_timings(
+            serde_json::from_str(&std::fs::read_to_string(p.join("bake.json")).unwrap()).unwrap(),
+        )
+    };
+    assert_eq!(
+        json(&bakes[0]),
+        json(&bakes[1]),
+        "bake.json differs (timings excluded)"
+    );
     let (m1, m2) = (material_lines(&materials[0]), material_lines(&materials[1]));
     for (i, (a, b)) in m1.iter().zip(&m2).enumerate() {
         assert_eq!(a, b, "material line {} differs", i + 1);
     }
     assert_eq!(m1.len(), m2.len());
     // The fit did something: some lobe is on.
-    let m = glint::fit::material::Material::parse(&std::fs::read_to_string(&materials[0]).unwrap()).unwrap();
-    assert!(m.coefficients.iter().flatten().any(|&c| c > 0.0), "the fit turned no lobe on");
+    let m = glint::fit::material::Material::parse(&std::fs::read_to_string(&materials[0]).unwrap())
+        .unwrap();
+    assert!(
+        m.coefficients.iter().flatten().any(|&c| c > 0.0),
+        "the fit turned no lobe on"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -12,9 +12,9 @@ use crate::common;
 use std::path::{Path, PathBuf};
 
 use base64::Engine as _;
+use common::pack_glb;
 use glam::{Vec3, Vec4};
 use glint::scene::{self, AttributeSource, ImportError, Scene};
-use common::pack_glb;
 use serde_json::{Value, json};
 
 const ASSETS: &str = "/work/shared/assets/glb";

@@ -1,12 +1,12 @@
 //! Property tests (proptest, issue #9) of the BRDF's physical guarantees over random inputs:
 //!
-//! - f_s is finite, ≥ 0 and reciprocal for random lobe layouts, λ, non-negative coefficients, F0 and
-//!   directions (grazing ones included);
-//! - after a constrained fit (random non-negative-target problems solved by the library's QP with the
-//!   energy rows on) the directional albedo ∫ f_r cos θi dωi stays ≤ 1.01 on 10⁴ random outgoing
-//!   directions, although the energy rows constrain only N_l of them. The albedo is integrated here
-//!   independently of the energy table: in *incident*-direction space (the table integrates in
-//!   half-vector space), per lobe over a polar cap about the lobe's mirror direction.
+//! - f_s is finite, ≥ 0 and reciprocal for random lobe layouts, λ, non-negative coefficients, F0
+//!   and directions (grazing ones included);
+//! - after a constrained fit (random non-negative-target problems solved by the library's QP with
+//!   the energy rows on) the directional albedo ∫ f_r cos θi dωi stays ≤ 1.01 on 10⁴ random
+//!   outgoing directions, although the energy rows constrain only N_l of them. The albedo is
+//!   integrated here independently of the energy table: in *incident*-direction space (the table
+//!   integrates in half-vector space), per lobe over a polar cap about the lobe's mirror direction.
 
 use glam::DVec3;
 use glint::brdf::{DistributionBrdf, EnergyTable};
@@ -19,7 +19,11 @@ use std::f64::consts::PI;
 
 /// A unit direction on the upper hemisphere from (u, v) ∈ [0, 1]²; `grazing` pushes z towards 0.
 fn hemisphere(u: f64, v: f64, grazing: bool) -> DVec3 {
-    let z = if grazing { (1e-9f64).max(u.powi(8) * 1e-3) } else { u.max(1e-12) };
+    let z = if grazing {
+        (1e-9f64).max(u.powi(8) * 1e-3)
+    } else {
+        u.max(1e-12)
+    };
     let r = (1.0 - z * z).max(0.0).sqrt();
     let phi = 2.0 * PI * v;
     DVec3::new(r * phi.cos(), r * phi.sin(), z)
@@ -27,7 +31,10 @@ fn hemisphere(u: f64, v: f64, grazing: bool) -> DVec3 {
 
 /// `default` cases, or PROPTEST_CASES when set (for longer runs than CI's: see the README).
 fn cases(default: u32) -> u32 {
-    std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(default)
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
 }
 
 fn layout_strategy() -> impl Strategy<Value = LobeLayout> {
@@ -73,7 +80,8 @@ proptest! {
     }
 }
 
-/// Gauss–Legendre points per radial panel of the cap; trapezoid points on a ring well clear of the horizon.
+/// Gauss–Legendre points per radial panel of the cap; trapezoid points on a ring well clear of the
+/// horizon.
 const RADIAL: usize = 16;
 const AZIMUTH: usize = 32;
 /// Gauss–Legendre order and largest width (radians) of the graded azimuth panels.
@@ -101,18 +109,18 @@ fn graded_breaks(lo: f64, hi: f64, features: &[(f64, f64)]) -> Vec<f64> {
 }
 /// ∫_{H²} f_s(wi, wo) cos θi dωi for one lobe (coefficient 1), by Gauss–Legendre in the radius of a
 /// polar cap in wi-space about the mirror direction of wo in the lobe centre, and in the azimuth of
-/// each ring of it. The map h → wi is 2-Lipschitz, so the cap of radius 2α, α the angle where G falls
-/// below e⁻³⁶, holds the whole lobe.
+/// each ring of it. The map h → wi is 2-Lipschitz, so the cap of radius 2α, α the angle where G
+/// falls below e⁻³⁶, holds the whole lobe.
 ///
 /// For grazing wo the integrand has two sharp features. Where wi crosses the horizon, cos θi · s ∝
 /// k1 / (k1 + k2 − k1k2) ramps up from 0 over k1 ~ k2 = wo.z. And −wo lies just below the horizon,
-/// where h = normalize(wi + wo) depends on the *direction* from −wo to wi only: near −wo, h sweeps the
-/// whole circle ⟂ wo (where the Fresnel factor is ~1) within any small disc. A ring at angular distance
-/// δ from −wo sees that as a bright feature ~δ wide. A 32-point trapezoid rule on such rings made the
-/// albedo of a λ = 8 lobe 4 % high at wo.z = 5e-4 (the CI failure of 2026-11-22). So the radius is
-/// split at the ring through −wo, and a ring passing within a few tenths of −wo, or crossing the
-/// horizon, is integrated on Gauss–Legendre panels graded towards the point nearest −wo and towards
-/// its horizon crossings.
+/// where h = normalize(wi + wo) depends on the *direction* from −wo to wi only: near −wo, h sweeps
+/// the whole circle ⟂ wo (where the Fresnel factor is ~1) within any small disc. A ring at angular
+/// distance δ from −wo sees that as a bright feature ~δ wide. A 32-point trapezoid rule on such
+/// rings made the albedo of a λ = 8 lobe 4 % high at wo.z = 5e-4 (the CI failure of 2026-11-22). So
+/// the radius is split at the ring through −wo, and a ring passing within a few tenths of −wo, or
+/// crossing the horizon, is integrated on Gauss–Legendre panels graded towards the point nearest
+/// −wo and towards its horizon crossings.
 fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLegendre) -> f64 {
     let lambda = brdf.lobes.lambda();
     let mut xi = brdf.lobes.centres()[j];
@@ -126,20 +134,30 @@ fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLege
     let centre = (2.0 * wo.dot(xi) * xi - wo).normalize();
     // G = exp(2λ(cos α − 1)) < e⁻³⁶ beyond 1 − cos α = 18/λ.
     let cos_alpha = 1.0 - 18.0 / lambda;
-    let alpha = if cos_alpha <= -1.0 { PI } else { cos_alpha.acos() };
+    let alpha = if cos_alpha <= -1.0 {
+        PI
+    } else {
+        cos_alpha.acos()
+    };
     let radius = (2.0 * alpha).min(PI);
     let (u, v) = centre.any_orthonormal_pair();
-    // A ring of the cap at angle t from the centre (elevation e above the horizon) lies wholly above the
-    // horizon while t < e, partly for e ≤ t < π − e. The radial rule is split there, and a partial ring
-    // is integrated over its visible arc only: the integrand is smooth on each piece (integrating the
-    // cut-off circle with the trapezoid rule gave errors of ±5 % for broad lobes at grazing wo).
-    // (With the centre below the horizon, e < 0: wholly below while t < −e, partly up to π + e, wholly
-    // above beyond.)
+    // A ring of the cap at angle t from the centre (elevation e above the horizon) lies wholly
+    // above the horizon while t < e, partly for e ≤ t < π − e. The radial rule is split there, and
+    // a partial ring is integrated over its visible arc only: the integrand is smooth on each piece
+    // (integrating the cut-off circle with the trapezoid rule gave errors of ±5 % for broad lobes
+    // at grazing wo). (With the centre below the horizon, e < 0: wholly below while t < −e, partly
+    // up to π + e, wholly above beyond.)
     let elevation = centre.z.clamp(-1.0, 1.0).asin().abs();
     let minus_wo = -wo;
     let t_star = centre.dot(minus_wo).clamp(-1.0, 1.0).acos();
     let phi_star = minus_wo.dot(v).atan2(minus_wo.dot(u));
-    let mut breaks = vec![0.0, elevation.min(radius), (PI - elevation).min(radius), t_star.min(radius), radius];
+    let mut breaks = vec![
+        0.0,
+        elevation.min(radius),
+        (PI - elevation).min(radius),
+        t_star.min(radius),
+        radius,
+    ];
     breaks.sort_by(f64::total_cmp);
     let panel_rule = GaussLegendre::new(PANEL_ORDER);
     let mut sum = 0.0;
@@ -151,7 +169,9 @@ fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLege
                 if wi.z <= 0.0 {
                     return 0.0;
                 }
-                let Some(h) = (wi + wo).try_normalize() else { return 0.0 };
+                let Some(h) = (wi + wo).try_normalize() else {
+                    return 0.0;
+                };
                 brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * wi.z
             };
             // wi.z(φ) = ct·c.z + st·(u.z cos φ + v.z sin φ) = a + r cos(φ − φ0): highest at φ0.
@@ -164,20 +184,40 @@ fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLege
                 // Wholly above: the lowest point φ0 + π, (a − r + k2) above the ramp.
                 let low_scale = 0.25 * (a - r + wo.z) / r.max(1e-300);
                 if star_scale.min(low_scale) >= SMOOTH {
-                    (0..AZIMUTH).map(|k| f(2.0 * PI * (k as f64 + 0.5) / AZIMUTH as f64)).sum::<f64>() * 2.0 * PI / AZIMUTH as f64
+                    (0..AZIMUTH)
+                        .map(|k| f(2.0 * PI * (k as f64 + 0.5) / AZIMUTH as f64))
+                        .sum::<f64>()
+                        * 2.0
+                        * PI
+                        / AZIMUTH as f64
                 } else {
                     // One period centred on φ*, the lowest point with its images a period away.
                     let low = phi0 + PI - 2.0 * PI * ((phi0 + PI - phi_star) / (2.0 * PI)).round();
-                    let features = [(phi_star, star_scale), (low, low_scale), (low - 2.0 * PI, low_scale), (low + 2.0 * PI, low_scale)];
-                    graded_breaks(phi_star - PI, phi_star + PI, &features).windows(2).map(|w| panel_rule.integrate(w[0], w[1], f)).sum()
+                    let features = [
+                        (phi_star, star_scale),
+                        (low, low_scale),
+                        (low - 2.0 * PI, low_scale),
+                        (low + 2.0 * PI, low_scale),
+                    ];
+                    graded_breaks(phi_star - PI, phi_star + PI, &features)
+                        .windows(2)
+                        .map(|w| panel_rule.integrate(w[0], w[1], f))
+                        .sum()
                 }
             } else {
                 // The visible arc φ0 ± half, graded towards its two ends (the ramp) and towards φ*.
                 let half = (-a / r).clamp(-1.0, 1.0).acos();
                 let end_scale = 0.25 * wo.z / r;
                 let star = phi_star - 2.0 * PI * ((phi_star - phi0) / (2.0 * PI)).round();
-                let features = [(phi0 - half, end_scale), (phi0 + half, end_scale), (star, star_scale)];
-                graded_breaks(phi0 - half, phi0 + half, &features).windows(2).map(|w| panel_rule.integrate(w[0], w[1], f)).sum()
+                let features = [
+                    (phi0 - half, end_scale),
+                    (phi0 + half, end_scale),
+                    (star, star_scale),
+                ];
+                graded_breaks(phi0 - half, phi0 + half, &features)
+                    .windows(2)
+                    .map(|w| panel_rule.integrate(w[0], w[1], f))
+                    .sum()
             };
             sum += wt * st * ring;
         }
@@ -194,8 +234,14 @@ fn lobe_albedo_hemisphere(brdf: &DistributionBrdf, j: usize, wo: DVec3, points: 
         let r = (1.0 - z * z).sqrt();
         for (phi, wp) in rule.on_interval(0.0, 2.0 * PI) {
             let wi = DVec3::new(r * phi.cos(), r * phi.sin(), z);
-            let Some(h) = (wi + wo).try_normalize() else { continue };
-            sum += wz * wp * brdf.lobes.eval_exact(j, h) * glint::brdf::static_term(wi, wo, brdf.f0) * z;
+            let Some(h) = (wi + wo).try_normalize() else {
+                continue;
+            };
+            sum += wz
+                * wp
+                * brdf.lobes.eval_exact(j, h)
+                * glint::brdf::static_term(wi, wo, brdf.f0)
+                * z;
         }
     }
     sum
@@ -206,52 +252,99 @@ fn cap_quadrature_matches_a_full_hemisphere_grid() {
     let rule = GaussLegendre::new(RADIAL);
     for (lambda, j) in [(1.0, 0), (3.5, 5), (10.0, 3), (40.0, 7), (300.0, 1)] {
         let lobes = LobeSet::new(LobeLayout::Hemicube { n: 2 }, lambda).unwrap();
-        let brdf = DistributionBrdf { coefficients: vec![1.0; lobes.len()], lobes, f0: 0.3, rho_d: 0.0 };
-        for wo in [DVec3::Z, DVec3::new(0.6, 0.2, 0.5).normalize(), DVec3::new(-0.9, 0.3, 0.05).normalize(), DVec3::new(0.9123, 0.4095, 3e-3).normalize(), DVec3::new(0.9123, 0.4095, 1e-6).normalize()] {
+        let brdf = DistributionBrdf {
+            coefficients: vec![1.0; lobes.len()],
+            lobes,
+            f0: 0.3,
+            rho_d: 0.0,
+        };
+        for wo in [
+            DVec3::Z,
+            DVec3::new(0.6, 0.2, 0.5).normalize(),
+            DVec3::new(-0.9, 0.3, 0.05).normalize(),
+            DVec3::new(0.9123, 0.4095, 3e-3).normalize(),
+            DVec3::new(0.9123, 0.4095, 1e-6).normalize(),
+        ] {
             let cap = lobe_albedo_wi(&brdf, j, wo, &rule);
             let full = lobe_albedo_hemisphere(&brdf, j, wo, 200);
-            // Grazing wo (z ≤ 3e-3): s varies on the scale wo.z near the horizon, which both rules resolve only
-            // to a few 1e-3 (λ = 10 at z = 3e-3: 2.8e-3 apart; the cap rule moves by 2e-5 from 32 to 128 arc
-            // points). At λ = 40 they are 7.6e-3 apart and it is not settled which is closer, so grazing
-            // directions are checked for λ ≤ 10 only. The albedo property below has 1e-2 of margin.
+            // Grazing wo (z ≤ 3e-3): s varies on the scale wo.z near the horizon, which both rules
+            // resolve only to a few 1e-3 (λ = 10 at z = 3e-3: 2.8e-3 apart; the cap rule moves by
+            // 2e-5 from 32 to 128 arc points). At λ = 40 they are 7.6e-3 apart and it is not
+            // settled which is closer, so grazing directions are checked for λ ≤ 10 only. The
+            // albedo property below has 1e-2 of margin.
             if wo.z < 0.01 && lambda > 10.0 {
                 continue;
             }
             let tolerance = if wo.z < 0.01 { 5e-3 } else { 2e-3 };
-            assert!((cap - full).abs() <= tolerance * full.max(1e-3), "λ={lambda} j={j} wo={wo}: cap {cap} vs grid {full}");
+            assert!(
+                (cap - full).abs() <= tolerance * full.max(1e-3),
+                "λ={lambda} j={j} wo={wo}: cap {cap} vs grid {full}"
+            );
         }
     }
 }
 
 /// The case CI found on 2026-11-22: a broad lobe (λ = 8.35) near the normal, seen from wo.z = 5e-4,
-/// where the ring through the patch at −wo had made the cap rule 4 % high (albedo 1.0215 reported for
-/// a fit whose true albedo is 0.999). The grid at 800² points is converged here to 1e-4 (400²: 0.07 %
-/// off, 200²: 0.7 %).
+/// where the ring through the patch at −wo had made the cap rule 4 % high (albedo 1.0215 reported
+/// for a fit whose true albedo is 0.999). The grid at 800² points is converged here to 1e-4 (400²:
+/// 0.07 % off, 200²: 0.7 %).
 #[test]
 fn cap_quadrature_resolves_the_patch_at_minus_wo() {
     let lobes = LobeSet::new(LobeLayout::Fibonacci { count: 7 }, 8.352166783431883).unwrap();
-    let brdf = DistributionBrdf { coefficients: vec![1.0; lobes.len()], lobes, f0: 0.05673871523560193, rho_d: 0.0 };
+    let brdf = DistributionBrdf {
+        coefficients: vec![1.0; lobes.len()],
+        lobes,
+        f0: 0.05673871523560193,
+        rho_d: 0.0,
+    };
     let rule = GaussLegendre::new(RADIAL);
     for z in [5e-4, 1e-6] {
         let r = (1.0f64 - z * z).sqrt();
-        let wo = DVec3::new(0.934177385569804 * r / 0.9999, -0.35680856542400635 * r / 0.9999, z).normalize();
+        let wo = DVec3::new(
+            0.934177385569804 * r / 0.9999,
+            -0.35680856542400635 * r / 0.9999,
+            z,
+        )
+        .normalize();
         for j in [0, 2, 3, 5] {
             let cap = lobe_albedo_wi(&brdf, j, wo, &rule);
             let full = lobe_albedo_hemisphere(&brdf, j, wo, 800);
-            assert!((cap - full).abs() <= 1e-3 * full, "j={j} wo={wo}: cap {cap} vs grid {full}");
+            assert!(
+                (cap - full).abs() <= 1e-3 * full,
+                "j={j} wo={wo}: cap {cap} vs grid {full}"
+            );
         }
     }
 }
 
 /// A random fit problem: T (N × J) ≥ 0, targets ≥ 0 made from an energy-infeasible p (so the energy
 /// rows bind) plus noise; normal equations formed here, solved by the library's constrained QP.
-fn fit_random(lobes: &LobeSet, energy: &EnergyTable, f0: f64, rho_d: f64, seed: u64, brightness: f64) -> Vec<f64> {
+fn fit_random(
+    lobes: &LobeSet,
+    energy: &EnergyTable,
+    f0: f64,
+    rho_d: f64,
+    seed: u64,
+    brightness: f64,
+) -> Vec<f64> {
     let mut rng = glint::math::Rng::new(seed);
     let j = lobes.len();
     let n = 3 * j + 10;
     let t: Vec<f64> = (0..n * j).map(|_| rng.next_f64().powi(3)).collect();
-    let truth: Vec<f64> = (0..j).map(|_| if rng.next_f64() < 0.3 { brightness * rng.next_f64() } else { 0.0 }).collect();
-    let target: Vec<f64> = (0..n).map(|i| ((0..j).map(|k| t[i * j + k] * truth[k]).sum::<f64>() + 0.1 * rng.next_f64()).max(0.0)).collect();
+    let truth: Vec<f64> = (0..j)
+        .map(|_| {
+            if rng.next_f64() < 0.3 {
+                brightness * rng.next_f64()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let target: Vec<f64> = (0..n)
+        .map(|i| {
+            ((0..j).map(|k| t[i * j + k] * truth[k]).sum::<f64>() + 0.1 * rng.next_f64()).max(0.0)
+        })
+        .collect();
     let mut h = vec![0.0; j * j];
     let mut r = vec![0.0; j];
     for i in 0..n {
@@ -264,7 +357,14 @@ fn fit_random(lobes: &LobeSet, energy: &EnergyTable, f0: f64, rho_d: f64, seed: 
         }
     }
     let constant = target.iter().map(|b| b * b).sum();
-    let equations = NormalEquations { j, h, r, constant, weight_sum: n as f64, pixels: n };
+    let equations = NormalEquations {
+        j,
+        h,
+        r,
+        constant,
+        weight_sum: n as f64,
+        pixels: n,
+    };
     let system = ChannelSystem::new(equations, Some((energy, f0)), rho_d).unwrap();
     let fit = system.solve(None).unwrap();
     assert!(fit.coefficients.iter().all(|c| c.is_finite() && *c >= 0.0));
@@ -308,6 +408,3 @@ proptest! {
         prop_assert!(worst.0 <= 1.01, "{layout:?} λ={lambda:.2} F0={f0:.3} ρd={rho_d:.3}: albedo {:.4} at wo={} ({} active lobes)", worst.0, worst.1, active.len());
     }
 }
-
-
-

@@ -2,7 +2,8 @@
 //! random fit-like problems: H = TᵀWT, q = −TᵀWB from a random positive T, weights W and targets
 //! B, energy rows G ≥ 0 with u = 1 − ρd.
 //!
-//! Tolerances asserted (the solver is exact up to rounding; Clarabel runs at 1e-10 gap/feasibility):
+//! Tolerances asserted (the solver is exact up to rounding; Clarabel runs at 1e-10
+//! gap/feasibility):
 //! - objective: |f − f_clarabel| ≤ 1e-6·|f_clarabel|;
 //! - feasibility: c ≥ 0 exactly, G c ≤ u + 1e-9;
 //! - KKT: stationarity ≤ 1e-8 relative to the largest term (‖Hc‖, ‖q‖, ‖λ‖, ‖Gᵀμ‖), multipliers ≥ 0
@@ -227,7 +228,10 @@ fn random_problems_match_clarabel() {
             .solve_unseeded(&prob.q)
             .unwrap();
         check(&prob, &plain, &format!("{label} unseeded"));
-        assert!(max_diff(&plain.c, &sol.c) <= 1e-8 * cmax, "{label}: seeded and plain GI differ");
+        assert!(
+            max_diff(&plain.c, &sol.c) <= 1e-8 * cmax,
+            "{label}: seeded and plain GI differ"
+        );
     }
     assert!(any_row, "no case had an energy row active");
 }

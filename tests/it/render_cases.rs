@@ -1,5 +1,5 @@
-//! The render tests' cases (a baked mesh under a map, the fitted sample material, one sharp lobe, PRT
-//! and Monte Carlo pairs), shared by tests/it/render.rs and examples/render_studies.rs.
+//! The render tests' cases (a baked mesh under a map, the fitted sample material, one sharp lobe,
+//! PRT and Monte Carlo pairs), shared by tests/it/render.rs and examples/render_studies.rs.
 #![allow(dead_code)] // each of the two users takes a different subset
 
 use crate::common;
@@ -29,9 +29,14 @@ pub fn case(mesh: &str, env: &str) -> Case {
     case_with(mesh, env, false)
 }
 
-/// With `refined`, baked as `glint bake` does: the mesh refined where visibility changes (decision (e)).
+/// With `refined`, baked as `glint bake` does: the mesh refined where visibility changes (decision
+/// (e)).
 pub fn case_with(mesh: &str, env: &str, refined: bool) -> Case {
-    case_at(&common::assets().join(format!("glb/{mesh}.glb")), &common::assets().join(format!("hdr/small/{env}.exr")), refined)
+    case_at(
+        &common::assets().join(format!("glb/{mesh}.glb")),
+        &common::assets().join(format!("hdr/small/{env}.exr")),
+        refined,
+    )
 }
 
 /// [`case_with`] for a scene and an environment given by path.
@@ -39,13 +44,25 @@ pub fn case_at(mesh: &std::path::Path, env: &std::path::Path, refined: bool) -> 
     let scene = glint::scene::import(mesh).unwrap();
     let env = glint::env::load(env).unwrap();
     let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-    let bake = if refined { baker.bake_refined(None, &|_| {}) } else { baker.bake_all(None, &|_| {}) };
+    let bake = if refined {
+        baker.bake_refined(None, &|_| {})
+    } else {
+        baker.bake_all(None, &|_| {})
+    };
     let offset = baker.ray_offset();
     let (set, tree) = (baker.set.clone(), baker.tree.clone());
     drop(baker);
     let scene = bake.scene(&scene).unwrap();
     let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
-    Case { scene, env, baker_offset: offset, bake, tangents, set, tree }
+    Case {
+        scene,
+        env,
+        baker_offset: offset,
+        bake,
+        tangents,
+        set,
+        tree,
+    }
 }
 
 pub const STROKES: &str = include_str!("../../samples/strokes/bunny-highlight.json");
@@ -53,9 +70,24 @@ pub const STROKES: &str = include_str!("../../samples/strokes/bunny-highlight.js
 /// Fits the sample strokes (a highlight painted on the default view) and returns the material.
 pub fn fitted(c: &Case) -> glint::fit::material::Material {
     let views = glint::fit::strokes::parse(STROKES).unwrap();
-    let outcome = fit(&Baked { scene: &c.scene, env: &c.env, cuts: &c.bake.cuts, resolution: c.bake.decisions.resolution, tangents: c.tangents.as_deref(), anisotropic: c.bake.decisions.anisotropic }, &views, &FitSettings::default()).unwrap();
+    let outcome = fit(
+        &Baked {
+            scene: &c.scene,
+            env: &c.env,
+            cuts: &c.bake.cuts,
+            resolution: c.bake.decisions.resolution,
+            tangents: c.tangents.as_deref(),
+            anisotropic: c.bake.decisions.anisotropic,
+        },
+        &views,
+        &FitSettings::default(),
+    )
+    .unwrap();
     let m = outcome.material;
-    assert!(m.coefficients.iter().flatten().any(|&x| x > 0.0), "the strokes must produce a specular lobe");
+    assert!(
+        m.coefficients.iter().flatten().any(|&x| x > 0.0),
+        "the strokes must produce a specular lobe"
+    );
     m
 }
 
@@ -75,36 +107,143 @@ pub fn compare(mesh: &str, w: u32, h: u32) -> Errors {
     let (_, imported_tangents, _) = glint::bake::decisions::decide_frames(&imported.mesh);
     let m = fitted(&c);
     let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let camera = &c.scene.cameras[0];
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default());
+    let prt = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        PrtSettings::default(),
+    );
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let t0 = std::time::Instant::now();
-    let tab = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+    let tab = prt.render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::Table(&table),
+        },
+    );
     let frame = t0.elapsed().as_secs_f64();
-    let exact = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Exact { lobes: &lobes, coefficients } });
+    let exact = prt.render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::Exact {
+                lobes: &lobes,
+                coefficients,
+            },
+        },
+    );
     // The per-pixel transfer render (same cuts, T·c + ρd E/π): what the PRT frame approximates.
-    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+    let ctx = glint::transfer::TransferContext::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        &lobes,
+        c.tangents.as_deref(),
+        None,
+    );
     let t = ctx.compute(&light, camera, w, h, m.f0);
     let mut transfer = glint::render::Image::new(w, h);
     for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
         transfer.set(p.x, p.y, v.map(|x| x as f32));
     }
     let t0 = std::time::Instant::now();
-    let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+    let material = ExactMaterial {
+        lobes: &lobes,
+        coefficients,
+        rho_d: m.rho_d,
+        f0: m.f0,
+    };
     let tracer = glint::bake::Tracer::new(&imported.mesh);
-    let mc = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 7);
+    let mc = render_reference(
+        &imported.mesh,
+        imported_tangents.as_deref(),
+        &tracer,
+        c.baker_offset,
+        &c.env,
+        0.0,
+        material,
+        camera,
+        w,
+        h,
+        4096,
+        7,
+    );
     let mc_secs = t0.elapsed().as_secs_f64();
     // The reference's own noise: a second 4096-spp render with another seed (the difference of two
     // is √2 × the noise of one).
-    let mc2 = render_reference(&imported.mesh, imported_tangents.as_deref(), &tracer, c.baker_offset, &c.env, 0.0, material, camera, w, h, 4096, 8);
-    let diffuse_only = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::None });
+    let mc2 = render_reference(
+        &imported.mesh,
+        imported_tangents.as_deref(),
+        &tracer,
+        c.baker_offset,
+        &c.env,
+        0.0,
+        material,
+        camera,
+        w,
+        h,
+        4096,
+        8,
+    );
+    let diffuse_only = prt.render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::None,
+        },
+    );
     // The BRDF once per partition node (merged runs, the default) against once per run.
-    let per_run = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { merge_runs: false, ..PrtSettings::default() }).render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+    let per_run = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        PrtSettings {
+            merge_runs: false,
+            ..PrtSettings::default()
+        },
+    )
+    .render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::Table(&table),
+        },
+    );
     let merged_vs_per_run = tab.relative_rmse(&per_run).unwrap();
-    println!("{mesh}: merged runs vs the BRDF per run {merged_vs_per_run:.5}, per run vs MC {:.4}", per_run.relative_rmse(&mc).unwrap());
-    assert!(merged_vs_per_run < 0.005, "{mesh}: merged runs {merged_vs_per_run} off the per-run frame");
+    println!(
+        "{mesh}: merged runs vs the BRDF per run {merged_vs_per_run:.5}, per run vs MC {:.4}",
+        per_run.relative_rmse(&mc).unwrap()
+    );
+    assert!(
+        merged_vs_per_run < 0.005,
+        "{mesh}: merged runs {merged_vs_per_run} off the per-run frame"
+    );
     let e = Errors {
         prt_vs_mc: tab.relative_rmse(&mc).unwrap(),
         prt_vs_transfer: tab.relative_rmse(&transfer).unwrap(),
@@ -125,24 +264,73 @@ pub fn compare(mesh: &str, w: u32, h: u32) -> Errors {
         e.table_vs_exact,
         e.mc_noise
     );
-    assert!(e_diffuse > 0.3, "the specular term must matter in this comparison (diffuse-only is {e_diffuse} off)");
+    assert!(
+        e_diffuse > 0.3,
+        "the specular term must matter in this comparison (diffuse-only is {e_diffuse} off)"
+    );
     assert!(e.mc_noise < 0.015, "reference noise {}", e.mc_noise);
-    assert!(e.table_vs_exact <= 0.005, "{mesh}: table vs exact lobes {} > 0.5 %", e.table_vs_exact);
+    assert!(
+        e.table_vs_exact <= 0.005,
+        "{mesh}: table vs exact lobes {} > 0.5 %",
+        e.table_vs_exact
+    );
     e
 }
 
 /// The default PRT frame, the vertex-only PRT frame and the per-pixel transfer render of `m` in the
 /// case's first camera.
-pub fn prt_and_transfer(c: &Case, m: &glint::fit::material::Material, w: u32, h: u32) -> (glint::render::Image, glint::render::Image, glint::render::Image) {
+pub fn prt_and_transfer(
+    c: &Case,
+    m: &glint::fit::material::Material,
+    w: u32,
+    h: u32,
+) -> (
+    glint::render::Image,
+    glint::render::Image,
+    glint::render::Image,
+) {
     let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let camera = &c.scene.cameras[0];
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
-    let shading = Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) };
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings::default()).render(&light, camera, w, h, &shading);
-    let prt_v = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), PrtSettings { max_edge_px: 0.0, per_pixel: false, ..PrtSettings::default() }).render(&light, camera, w, h, &shading);
-    let ctx = glint::transfer::TransferContext::new(&c.scene.mesh, &c.bake.cuts, &c.tree, &lobes, c.tangents.as_deref(), None);
+    let shading = Shading {
+        rho_d: m.rho_d,
+        f0: m.f0,
+        specular: Specular::Table(&table),
+    };
+    let prt = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        PrtSettings::default(),
+    )
+    .render(&light, camera, w, h, &shading);
+    let prt_v = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        PrtSettings {
+            max_edge_px: 0.0,
+            per_pixel: false,
+            ..PrtSettings::default()
+        },
+    )
+    .render(&light, camera, w, h, &shading);
+    let ctx = glint::transfer::TransferContext::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        &lobes,
+        c.tangents.as_deref(),
+        None,
+    );
     let t = ctx.compute(&light, camera, w, h, m.f0);
     let mut transfer = glint::render::Image::new(w, h);
     for (p, v) in t.pixels.iter().zip(t.render(m.rho_d, coefficients)) {
@@ -151,9 +339,13 @@ pub fn prt_and_transfer(c: &Case, m: &glint::fit::material::Material, w: u32, h:
     (prt, prt_v, transfer)
 }
 
-/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with `None`):
-/// the accuracy matrix's measure (`glint::accuracy::masked_rel_rmse`).
-pub fn rmse_where(a: &glint::render::Image, b: &glint::render::Image, mask: Option<&[bool]>) -> f64 {
+/// Relative RMSE of `a` against `b` over the pixels both cover where `mask` holds (all with
+/// `None`): the accuracy matrix's measure (`glint::accuracy::masked_rel_rmse`).
+pub fn rmse_where(
+    a: &glint::render::Image,
+    b: &glint::render::Image,
+    mask: Option<&[bool]>,
+) -> f64 {
     let all;
     let mask = match mask {
         Some(m) => m,
@@ -169,12 +361,26 @@ pub fn rmse_where(a: &glint::render::Image, b: &glint::render::Image, mask: Opti
 /// scaled to a directional albedo of at most 0.9), ρd = 0.05, F0 = 0.04.
 pub fn one_sharp_lobe() -> glint::fit::material::Material {
     use glint::sphere::srbf::{PAPER_SIGMA, lambda_from_sigma};
-    let lobes = glint::sphere::LobeSet::new(glint::sphere::LobeLayout::Isotropic { count: 24 }, lambda_from_sigma(PAPER_SIGMA).unwrap()).unwrap();
+    let lobes = glint::sphere::LobeSet::new(
+        glint::sphere::LobeLayout::Isotropic { count: 24 },
+        lambda_from_sigma(PAPER_SIGMA).unwrap(),
+    )
+    .unwrap();
     let mut c = vec![0.0; lobes.len()];
     c[0] = 1.0;
-    let albedo = glint::brdf::energy::EnergyTable::cached(&lobes).albedo(&c, 0.04).into_iter().fold(0.0, f64::max);
+    let albedo = glint::brdf::energy::EnergyTable::cached(&lobes)
+        .albedo(&c, 0.04)
+        .into_iter()
+        .fold(0.0, f64::max);
     c[0] = 0.9 / albedo;
-    glint::fit::material::Material::new(&lobes, PAPER_SIGMA, [c.clone(), c.clone(), c], [0.05; 3], 0.04, Default::default())
+    glint::fit::material::Material::new(
+        &lobes,
+        PAPER_SIGMA,
+        [c.clone(), c.clone(), c],
+        [0.05; 3],
+        0.04,
+        Default::default(),
+    )
 }
 
 /// PRT (default settings, tabulated p) and Monte Carlo images of `m` for a case, a camera and a
@@ -187,20 +393,73 @@ pub struct Pair {
 }
 
 #[allow(clippy::too_many_arguments)]
-pub fn prt_and_mc(c: &Case, imported: &glint::scene::Mesh, m: &glint::fit::material::Material, camera: &glint::scene::Camera, rotation_deg: f64, w: u32, h: u32, spp: u32, settings: PrtSettings) -> Pair {
+pub fn prt_and_mc(
+    c: &Case,
+    imported: &glint::scene::Mesh,
+    m: &glint::fit::material::Material,
+    camera: &glint::scene::Camera,
+    rotation_deg: f64,
+    w: u32,
+    h: u32,
+    spp: u32,
+    settings: PrtSettings,
+) -> Pair {
     let lobes = m.lobes().unwrap();
-    let coefficients = [m.coefficients[0].as_slice(), m.coefficients[1].as_slice(), m.coefficients[2].as_slice()];
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let rotation = rotation_deg.to_radians();
     let light = LightSums::new(&c.env, &c.set, &c.tree, rotation);
-    let prt = Prt::new(&c.scene.mesh, &c.bake.cuts, &c.tree, c.tangents.as_deref(), settings);
+    let prt = Prt::new(
+        &c.scene.mesh,
+        &c.bake.cuts,
+        &c.tree,
+        c.tangents.as_deref(),
+        settings,
+    );
     let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let t0 = std::time::Instant::now();
-    let img = prt.render(&light, camera, w, h, &Shading { rho_d: m.rho_d, f0: m.f0, specular: Specular::Table(&table) });
+    let img = prt.render(
+        &light,
+        camera,
+        w,
+        h,
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::Table(&table),
+        },
+    );
     let prt_secs = t0.elapsed().as_secs_f64();
     let (_, tangents, _) = glint::bake::decisions::decide_frames(imported);
     let tracer = glint::bake::Tracer::new(imported);
-    let material = ExactMaterial { lobes: &lobes, coefficients, rho_d: m.rho_d, f0: m.f0 };
+    let material = ExactMaterial {
+        lobes: &lobes,
+        coefficients,
+        rho_d: m.rho_d,
+        f0: m.f0,
+    };
     let t0 = std::time::Instant::now();
-    let mc = render_reference(imported, tangents.as_deref(), &tracer, c.baker_offset, &c.env, rotation, material, camera, w, h, spp, 7);
-    Pair { prt: img, mc, prt_secs, mc_secs: t0.elapsed().as_secs_f64() }
+    let mc = render_reference(
+        imported,
+        tangents.as_deref(),
+        &tracer,
+        c.baker_offset,
+        &c.env,
+        rotation,
+        material,
+        camera,
+        w,
+        h,
+        spp,
+        7,
+    );
+    Pair {
+        prt: img,
+        mc,
+        prt_secs,
+        mc_secs: t0.elapsed().as_secs_f64(),
+    }
 }

@@ -1,6 +1,6 @@
-//! House rules that a reviewer would otherwise check by hand: every Rust module of the product opens
-//! with a `//!` doc (its inputs, outputs and invariants), and the exporters crate depends on nothing of
-//! the pipeline.
+//! House rules that a reviewer would otherwise check by hand: every Rust module of the product
+//! opens with a `//!` doc (its inputs, outputs and invariants), and the exporters crate depends on
+//! nothing of the pipeline.
 
 use std::path::{Path, PathBuf};
 
@@ -45,7 +45,10 @@ fn exporters_know_nothing_of_the_pipeline() {
         }
         if in_deps {
             let key = line.split('=').next().unwrap_or("").trim();
-            assert!(key != "glint" && !line.contains("path = \"..\""), "exporters must not depend on glint: {line}");
+            assert!(
+                key != "glint" && !line.contains("path = \"..\""),
+                "exporters must not depend on glint: {line}"
+            );
         }
     }
     let mut files = Vec::new();
@@ -65,9 +68,13 @@ fn only_the_gpu_and_app_modules_know_wgpu() {
         .iter()
         .filter(|f| {
             let rel = f.strip_prefix(root.join("src")).unwrap();
-            let allowed = rel.starts_with("gpu") || rel.starts_with("app") || rel == Path::new("main.rs");
+            let allowed =
+                rel.starts_with("gpu") || rel.starts_with("app") || rel == Path::new("main.rs");
             !allowed && std::fs::read_to_string(f).unwrap().contains("wgpu::")
         })
         .collect();
-    assert!(offenders.is_empty(), "wgpu outside src/gpu and src/app: {offenders:?}");
+    assert!(
+        offenders.is_empty(),
+        "wgpu outside src/gpu and src/app: {offenders:?}"
+    );
 }

@@ -61,14 +61,24 @@ pub fn material(name: &str, resolution: u32) -> MaterialDesc {
         let base = 3.0 * (-(1.0 - c[2]) * 6.0).exp() * (1.0 + 0.5 * c[0]);
         for (k, ch) in coefficients.iter_mut().enumerate() {
             let r = rng.uniform();
-            ch[i] = if r < 0.3 { 0.0 } else { base * (0.6 + 0.2 * k as f64) + 0.05 * r };
+            ch[i] = if r < 0.3 {
+                0.0
+            } else {
+                base * (0.6 + 0.2 * k as f64) + 0.05 * r
+            };
         }
     }
     let mut provenance = BTreeMap::new();
     provenance.insert("tool".to_string(), "glint 0.1.0 (test)".to_string());
     provenance.insert("input.scene.sha256".to_string(), "00ff".repeat(16));
-    provenance.insert("fit.residual_rms".to_string(), "[0.01, 0.02, 0.03]".to_string());
-    provenance.insert("note with \"quotes\" and \\ backslash".to_string(), "line1\nline2 – ünïcode".to_string());
+    provenance.insert(
+        "fit.residual_rms".to_string(),
+        "[0.01, 0.02, 0.03]".to_string(),
+    );
+    provenance.insert(
+        "note with \"quotes\" and \\ backslash".to_string(),
+        "line1\nline2 – ünïcode".to_string(),
+    );
     let mut desc = MaterialDesc {
         name: name.to_string(),
         model: "dbrdf-srbf".into(),
@@ -85,7 +95,13 @@ pub fn material(name: &str, resolution: u32) -> MaterialDesc {
         frame_convention: glint_exporters::material::FRAME_CONVENTION.into(),
         provenance,
         table: PhTable::default(),
-        fallback: PbrFallback { base_color: [0.31, 0.22, 0.13], metallic: 0.0, roughness: 0.23, anisotropy: Some((0.4, 0.25)), relative_error: 0.12 },
+        fallback: PbrFallback {
+            base_color: [0.31, 0.22, 0.13],
+            metallic: 0.0,
+            roughness: 0.23,
+            anisotropy: Some((0.4, 0.25)),
+            relative_error: 0.12,
+        },
         merl: None,
     };
     desc.table = PhTable::tabulate(resolution, |h| lobes_p(&desc, h));
@@ -94,22 +110,52 @@ pub fn material(name: &str, resolution: u32) -> MaterialDesc {
 
 /// A small closed mesh with normals, tangents and UVs (an octahedron with flat-shaded faces).
 pub fn scene_mesh() -> SceneMesh {
-    let v = [[1.0f32, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
-    let faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    let mut m = SceneMesh { tangents: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
+    let v = [
+        [1.0f32, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let faces = [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let mut m = SceneMesh {
+        tangents: Some(Vec::new()),
+        uvs: Some(Vec::new()),
+        ..Default::default()
+    };
     for f in faces {
         let (a, b, c) = (v[f[0]], v[f[1]], v[f[2]]);
         let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
         let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let el = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]).sqrt();
         for (k, p) in [a, b, c].into_iter().enumerate() {
             m.indices.push(m.positions.len() as u32);
             m.positions.push(p);
             m.normals.push([n[0] / l, n[1] / l, n[2] / l]);
-            m.tangents.as_mut().unwrap().push([e1[0] / el, e1[1] / el, e1[2] / el, 1.0]);
-            m.uvs.as_mut().unwrap().push([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]][k]);
+            m.tangents
+                .as_mut()
+                .unwrap()
+                .push([e1[0] / el, e1[1] / el, e1[2] / el, 1.0]);
+            m.uvs
+                .as_mut()
+                .unwrap()
+                .push([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]][k]);
         }
     }
     m
@@ -124,7 +170,10 @@ pub fn temp_dir(tag: &str) -> PathBuf {
 }
 
 pub fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
 }
 
 pub fn in_ci() -> bool {
@@ -134,18 +183,37 @@ pub fn in_ci() -> bool {
 /// Reports a missing tool: panics in CI, otherwise prints why and returns (the caller skips).
 pub fn missing(tool: &str, why: &str) {
     if in_ci() {
-        panic!("{tool} is required in CI (CI=true) but unavailable: {why}; see exporters/README.md");
+        panic!(
+            "{tool} is required in CI (CI=true) but unavailable: {why}; see exporters/README.md"
+        );
     }
-    eprintln!("SKIPPED: {tool} unavailable ({why}); see exporters/README.md for the install commands");
+    eprintln!(
+        "SKIPPED: {tool} unavailable ({why}); see exporters/README.md for the install commands"
+    );
 }
 
 /// `$GLINT_PYTHON`, else `<workspace>/.venv/bin/python`, if it imports `modules`.
 pub fn python(modules: &str) -> Option<PathBuf> {
-    let py = std::env::var_os("GLINT_PYTHON").map(PathBuf::from).unwrap_or_else(|| workspace().join(".venv/bin/python"));
-    match Command::new(&py).args(["-c", &format!("import {modules}")]).output() {
+    let py = std::env::var_os("GLINT_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace().join(".venv/bin/python"));
+    match Command::new(&py)
+        .args(["-c", &format!("import {modules}")])
+        .output()
+    {
         Ok(o) if o.status.success() => Some(py),
         Ok(o) => {
-            missing("python", &format!("{} cannot import {modules}: {}", py.display(), String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")));
+            missing(
+                "python",
+                &format!(
+                    "{} cannot import {modules}: {}",
+                    py.display(),
+                    String::from_utf8_lossy(&o.stderr)
+                        .lines()
+                        .last()
+                        .unwrap_or("")
+                ),
+            );
             None
         }
         Err(e) => {
@@ -158,8 +226,14 @@ pub fn python(modules: &str) -> Option<PathBuf> {
 /// `node` with `exporters/js/node_modules/gltf-validator` installed.
 pub fn node_validator() -> Option<(PathBuf, PathBuf)> {
     let js = workspace().join("exporters/js");
-    if !js.join("node_modules/gltf-validator/package.json").is_file() {
-        missing("gltf-validator", "exporters/js/node_modules/gltf-validator is not installed (cd exporters/js && npm ci)");
+    if !js
+        .join("node_modules/gltf-validator/package.json")
+        .is_file()
+    {
+        missing(
+            "gltf-validator",
+            "exporters/js/node_modules/gltf-validator is not installed (cd exporters/js && npm ci)",
+        );
         return None;
     }
     match Command::new("node").arg("--version").output() {
@@ -173,8 +247,14 @@ pub fn node_validator() -> Option<(PathBuf, PathBuf)> {
 
 /// Runs a command; returns (success, stdout, stderr).
 pub fn run(cmd: &mut Command) -> (bool, String, String) {
-    let o = cmd.output().unwrap_or_else(|e| panic!("cannot run {cmd:?}: {e}"));
-    (o.status.success(), String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+    let o = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run {cmd:?}: {e}"));
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
 }
 
 /// A camera looking at the fixture mesh from +Z (what `glint export --scene` attaches).

@@ -3,7 +3,11 @@
 use std::path::PathBuf;
 
 #[derive(clap::Parser)]
-#[command(name = "glint", version, about = "Paint highlights on a glTF object under an HDR environment; glint solves for the physically valid BRDF that renders them.")]
+#[command(
+    name = "glint",
+    version,
+    about = "Paint highlights on a glTF object under an HDR environment; glint solves for the physically valid BRDF that renders them."
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -33,7 +37,8 @@ pub enum Command {
     Export(ExportArgs),
     /// The painting app: paint highlights on the object, glint fits the BRDF on release.
     App(AppArgs),
-    /// Accuracy against time: sweep each accuracy knob from the defaults; write study.csv, study.svg
+    /// Accuracy against time: sweep each accuracy knob from the defaults; write study.csv,
+    /// study.svg
     /// (error against time, Pareto front) and study.md.
     Study(StudyArgs),
     /// The headless main job on the bundled sample: bake, fit the sample strokes, render, export.
@@ -73,7 +78,8 @@ pub struct ViewArgs {
     /// A camera of the scene, by name (default: the first camera, or the default camera).
     #[arg(long, conflicts_with = "orbit")]
     pub camera: Option<String>,
-    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 =
+    /// fit).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub orbit: Option<Vec<f32>>,
     /// Environment rotation about +Y in degrees.
@@ -94,7 +100,8 @@ pub struct AppArgs {
     /// Replay a stroke file (the `glint fit --strokes` format) once the first view is baked.
     #[arg(long)]
     pub replay: Option<PathBuf>,
-    /// Draw the app offscreen (no window, no display needed) after the replay's fit, write this PNG and
+    /// Draw the app offscreen (no window, no display needed) after the replay's fit, write this PNG
+    /// and
     /// exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
@@ -110,7 +117,8 @@ pub struct AppArgs {
     /// Do not autosave.
     #[arg(long)]
     pub no_autosave: bool,
-    /// What draws the preview: auto (the wgpu preview on a hardware adapter, the CPU PRT frame where
+    /// What draws the preview: auto (the wgpu preview on a hardware adapter, the CPU PRT frame
+    /// where
     /// the only adapter is a software rasteriser such as llvmpipe), cpu or gpu.
     #[arg(long, default_value = "auto")]
     pub preview: glint::app::PreviewChoice,
@@ -130,7 +138,8 @@ pub struct ExportArgs {
     /// sphere), with the view as a camera.
     #[arg(long, conflicts_with = "bake")]
     pub scene: Option<PathBuf>,
-    /// Take the scene, its environment and tangent frames from this bake (what `glint render` renders:
+    /// Take the scene, its environment and tangent frames from this bake (what `glint render`
+    /// renders:
     /// the refined mesh), instead of --scene and --env.
     #[arg(long)]
     pub bake: Option<PathBuf>,
@@ -171,11 +180,14 @@ pub struct BakeArgs {
     #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
     pub epsilon: f64,
     /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
-    /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the reason).
+    /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the
+    /// reason).
     #[arg(long)]
     pub cell_deg: Option<f64>,
-    /// Times a visibility cell beside a cell of the other visibility (a shadow edge) is traced again as
-    /// cells half as wide (0: off). Default: decided with the cell size (2 where small bright lights
+    /// Times a visibility cell beside a cell of the other visibility (a shadow edge) is traced
+    /// again as
+    /// cells half as wide (0: off). Default: decided with the cell size (2 where small bright
+    /// lights
     /// cast sharp shadows, else 0).
     #[arg(long)]
     pub boundary_levels: Option<u32>,
@@ -186,7 +198,8 @@ pub struct BakeArgs {
     /// vertices traced (0: bake the mesh as it is).
     #[arg(long, default_value_t = glint::bake::RefineSettings::default().rounds)]
     pub refine_rounds: u32,
-    /// Split an edge when its ends' visibility differs by more than this fraction of the irradiance.
+    /// Split an edge when its ends' visibility differs by more than this fraction of the
+    /// irradiance.
     #[arg(long, default_value_t = glint::bake::RefineSettings::default().threshold)]
     pub refine_threshold: f64,
     /// Trace every vertex (no vertex sampling: by default a vertex of a dense mesh whose traced
@@ -199,7 +212,8 @@ pub struct BakeArgs {
     /// A camera of the scene, by name (default: the first camera, or the default camera).
     #[arg(long, conflicts_with = "orbit")]
     pub camera: Option<String>,
-    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 = fit).
+    /// An orbit view around the bounds: azimuth°, elevation°, distance (in bounding radii; 0 =
+    /// fit).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub orbit: Option<Vec<f32>>,
     /// Fit resolution WxH (default: a quarter of the view in each axis, 160x120 for 640x480).
@@ -223,7 +237,8 @@ pub struct FitArgs {
     /// Where to write the material (lobe table JSON).
     #[arg(long)]
     pub out: PathBuf,
-    /// Also write the problem and its solution as .npy files (T, B, w, E, energy rows, bounds, c) and
+    /// Also write the problem and its solution as .npy files (T, B, w, E, energy rows, bounds, c)
+    /// and
     /// meta.json into this folder.
     #[arg(long)]
     pub dump_qp: Option<PathBuf>,
@@ -277,4 +292,64 @@ pub struct StudyArgs {
     pub out: PathBuf,
 }
 
+impl BakeArgs {
+    /// The bake settings these arguments ask for.
+    pub fn settings(&self) -> anyhow::Result<glint::bake::BakeSettings> {
+        use glint::bake::{BakeSettings, CutSettings, RefineSettings};
+        if !(self.refine_threshold >= 0.0 && self.refine_threshold.is_finite()) {
+            anyhow::bail!(
+                "--refine-threshold must be finite and >= 0, not {}",
+                self.refine_threshold
+            );
+        }
+        let cut = CutSettings {
+            epsilon: self.epsilon,
+            max_cut: self.max_cut,
+            trace_leaves: self.trace_leaves,
+            cell_leaves: 1,
+            ..CutSettings::default()
+        };
+        let refine = RefineSettings {
+            rounds: self.refine_rounds,
+            threshold: self.refine_threshold,
+            interpolate: !self.trace_every_vertex,
+            ..RefineSettings::default()
+        };
+        let (resolution, cell_deg, boundary_levels) =
+            (self.resolution, self.cell_deg, self.boundary_levels);
+        Ok(BakeSettings {
+            resolution,
+            cut,
+            cell_deg,
+            boundary_levels,
+            refine,
+            ..BakeSettings::default()
+        })
+    }
 
+    /// The output folder: --out, else `<scene name>.bake` here.
+    pub fn out_dir(&self) -> PathBuf {
+        let stem = self
+            .scene
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().to_string());
+        self.out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{stem}.bake")))
+    }
+}
+
+impl ExportArgs {
+    /// The scene the export carries, as the library takes it.
+    pub fn scene_choice(&self) -> glint::export::SceneChoice<'_> {
+        glint::export::SceneChoice {
+            bake: self.bake.as_deref(),
+            scene: self.scene.as_deref(),
+            env: self.env.as_deref(),
+            camera: self.view.camera.as_deref(),
+            orbit: self.view.orbit.as_deref(),
+            size: self.view.size.as_deref(),
+            rotate_deg: self.view.rotate,
+        }
+    }
+}
