@@ -209,7 +209,8 @@ fn static_term(wi: vec3<f32>, wo: vec3<f32>, h: vec3<f32>, f0: f32) -> f32 {
     return schlick(f0, dot(wi, h)) / (4.0 * d);
 }
 
-// Hemi-octahedral (u, v) of a local unit vector (sphere::hemi_oct::encode).
+// Hemi-octahedral (u, v) of a local unit vector: must match glint_exporters::hemi_oct_encode (the one
+// definition; tests/it/gpu.rs runs this copy against it on every texel, below the horizon too).
 fn hemi_oct_encode(h: vec3<f32>) -> vec2<f32> {
     let l1 = abs(h.x) + abs(h.y) + abs(h.z);
     if !(l1 > 0.0) {

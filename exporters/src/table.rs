@@ -9,7 +9,7 @@
 //! Parameterisation ("hemi-octahedral", corner-aligned): texel (x, y) sits at u = x/(R−1), v =
 //! y/(R−1) (the outer texels lie on the horizon, so bilinear lookup covers the square without
 //! clamping); a = 2u−1, b = 2v−1, px = (a+b)/2, py = (a−b)/2, z = 1−|px|−|py| (≥ 0 on the whole
-//! square), h = normalize(px, py, z). Inverse: l1 = |hx|+|hy|+hz, px = hx/l1, py = hy/l1, u =
+//! square), h = normalize(px, py, z). Inverse: l1 = |hx|+|hy|+|hz|, px = hx/l1, py = hy/l1, u =
 //! (px+py+1)/2, v = (px−py+1)/2. The square's border is the horizon; its centre is the normal. Row
 //! y = 0 is the first (top) scan line of the EXR.
 //!
@@ -31,32 +31,31 @@ pub const DEFAULT_TABLE_RESOLUTION: u32 = 512;
 /// Largest resolution accepted (a 16384² RGB f32 table is 3 GiB).
 pub const MAX_TABLE_RESOLUTION: u32 = 16384;
 
-/// The local half-vector (unit, z ≥ 0) at table coordinates (u, v) ∈ [0, 1]².
+/// The local half-vector (unit, z ≥ 0) at table coordinates (u, v) ∈ [0, 1]². The one definition:
+/// glint's renderers (`glint::sphere::hemi_oct` re-exports it), the exporters, and the WGSL copy in
+/// shaders/prt_shade.wgsl (checked against this on every texel by the GPU tests).
 pub fn hemi_oct_decode(u: f64, v: f64) -> [f64; 3] {
     let a = 2.0 * u - 1.0;
     let b = 2.0 * v - 1.0;
     let px = 0.5 * (a + b);
     let py = 0.5 * (a - b);
     let z = (1.0 - px.abs() - py.abs()).max(0.0);
-    let n = (px * px + py * py + z * z).sqrt();
-    if n > 0.0 {
-        [px / n, py / n, z / n]
-    } else {
-        [0.0, 0.0, 1.0]
-    }
+    // z ≥ 0 and |px| + |py| + z ≥ 1 on the whole square, so the length is ≥ 1/√3.
+    let inv = 1.0 / (px * px + py * py + z * z).sqrt();
+    [px * inv, py * inv, z * inv]
 }
 
-/// Table coordinates (u, v) ∈ [0, 1]² of a local direction; h.z < 0 is treated as 0 (the horizon),
-/// and a zero or non-finite vector maps to the centre (the normal).
+/// Table coordinates (u, v) ∈ [0, 1]² of a local direction. A direction below the horizon
+/// (h.z < 0) is folded to its mirror image above it (|h.z|), so every direction indexes the square;
+/// a zero or non-finite vector maps to the centre (the normal).
 pub fn hemi_oct_encode(h: [f64; 3]) -> (f64, f64) {
-    let z = h[2].max(0.0);
-    let l1 = h[0].abs() + h[1].abs() + z;
+    let l1 = h[0].abs() + h[1].abs() + h[2].abs();
     if !(l1.is_finite() && l1 > 0.0) {
         return (0.5, 0.5);
     }
     let px = h[0] / l1;
     let py = h[1] / l1;
-    (0.5 * (px + py + 1.0), 0.5 * (px - py + 1.0))
+    (((px + py) + 1.0) * 0.5, ((px - py) + 1.0) * 0.5)
 }
 
 /// The tabulated p(h): `resolution²` RGB texels, row-major (index = y·resolution + x).

@@ -8,29 +8,26 @@
 //! px = hx/l1, py = hy/l1, u = (px + py + 1)/2, v = (px − py + 1)/2. The map is continuous, covers
 //! the hemisphere once, and its texels' solid angles differ by at most a factor of about 2.
 //!
+//! The definition lives in the exporters crate ([`glint_exporters::hemi_oct_encode`] and
+//! [`glint_exporters::hemi_oct_decode`]: the files glint writes are read with it); this module is
+//! its glam face. The WGSL copy (shaders/prt_shade.wgsl) is checked against it by the GPU tests.
+//!
 //! Inputs and outputs: local unit vectors (z = normal) and (u, v) ∈ [0, 1]². Invariants: no IO; a
 //! vector below the horizon is folded up (|z|) so callers never index outside the square.
 
 use glam::DVec3;
 
-/// (u, v) ∈ [0, 1]² of a local unit vector (z < 0 is folded to |z|).
+/// (u, v) ∈ [0, 1]² of a local unit vector (z < 0 is folded to |z|):
+/// [`glint_exporters::hemi_oct_encode`], the one definition.
 #[inline]
 pub fn encode(h: DVec3) -> (f64, f64) {
-    let l1 = h.x.abs() + h.y.abs() + h.z.abs();
-    if !(l1 > 0.0) {
-        return (0.5, 0.5);
-    }
-    let (px, py) = (h.x / l1, h.y / l1);
-    (((px + py) + 1.0) * 0.5, ((px - py) + 1.0) * 0.5)
+    glint_exporters::hemi_oct_encode(h.to_array())
 }
 
-/// The unit vector at (u, v) ∈ [0, 1]².
+/// The unit vector at (u, v) ∈ [0, 1]²: [`glint_exporters::hemi_oct_decode`], the one definition.
 #[inline]
 pub fn decode(u: f64, v: f64) -> DVec3 {
-    let (a, b) = (u * 2.0 - 1.0, v * 2.0 - 1.0);
-    let (px, py) = ((a + b) * 0.5, (a - b) * 0.5);
-    let z = 1.0 - px.abs() - py.abs();
-    DVec3::new(px, py, z.max(0.0)).normalize()
+    DVec3::from_array(glint_exporters::hemi_oct_decode(u, v))
 }
 
 #[cfg(test)]

@@ -299,3 +299,132 @@ fn white_furnace_and_not_ready() {
         "an empty frame is refused"
     );
 }
+
+/// The WGSL copy of the hemi-octahedral encoding (shaders/prt_shade.wgsl) against the one definition
+/// (`glint_exporters::hemi_oct_encode`), run on the GPU: every texel direction of a 64² table, each
+/// also mirrored below the horizon (where folding and clamping differ), and degenerate vectors. The
+/// texel coordinates must agree to 1e-3 texel (f32 against f64).
+#[test]
+fn wgsl_hemi_oct_encode_matches_the_definition_on_every_texel() {
+    use wgpu::util::DeviceExt as _;
+    let Some(ctx) = context() else { return };
+    let source = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders/prt_shade.wgsl"),
+    )
+    .unwrap();
+    let start = source
+        .find("fn hemi_oct_encode(")
+        .expect("the WGSL defines hemi_oct_encode");
+    let body = &source[start..];
+    let (mut depth, mut end) = (0, 0);
+    for (i, c) in body.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' => {
+                depth -= 1;
+                if depth == 0 {
+                    end = i + 1;
+                    break;
+                }
+            }
+            _ => {}
+        }
+    }
+    let shader = format!(
+        "@group(0) @binding(0) var<storage, read> dirs: array<vec4<f32>>;\n\
+         @group(0) @binding(1) var<storage, read_write> uvs: array<vec2<f32>>;\n{}\n\
+         @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
+         if (id.x < arrayLength(&dirs)) {{ uvs[id.x] = hemi_oct_encode(dirs[id.x].xyz); }} }}",
+        &body[..end]
+    );
+    const R: usize = 64;
+    let mut dirs: Vec<[f64; 3]> = Vec::new();
+    for y in 0..R {
+        for x in 0..R {
+            let h = glint_exporters::hemi_oct_decode(
+                x as f64 / (R - 1) as f64,
+                y as f64 / (R - 1) as f64,
+            );
+            dirs.push(h);
+            dirs.push([h[0], h[1], -h[2]]);
+        }
+    }
+    dirs.extend([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, -0.0]]);
+    let packed: Vec<f32> = dirs
+        .iter()
+        .flat_map(|d| [d[0] as f32, d[1] as f32, d[2] as f32, 0.0])
+        .collect();
+    let device = &ctx.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("hemi_oct_encode test"),
+        source: wgpu::ShaderSource::Wgsl(shader.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: None,
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&packed),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let size = (dirs.len() * 8) as u64;
+    let output = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: input.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: output.as_entire_binding(),
+            },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(dirs.len().div_ceil(64) as u32, 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, size);
+    ctx.queue.submit([encoder.finish()]);
+    let bytes = glint::gpu::preview::read_buffer(&ctx, &staging).unwrap();
+    let uvs: &[f32] = bytemuck::cast_slice(&bytes);
+    let mut worst = 0.0f64;
+    for (k, d) in dirs.iter().enumerate() {
+        let (u, v) = glint_exporters::hemi_oct_encode(*d);
+        let du = (uvs[2 * k] as f64 - u).abs() * (R - 1) as f64;
+        let dv = (uvs[2 * k + 1] as f64 - v).abs() * (R - 1) as f64;
+        assert!(
+            du <= 1e-3 && dv <= 1e-3,
+            "direction {d:?}: WGSL ({}, {}) against ({u}, {v})",
+            uvs[2 * k],
+            uvs[2 * k + 1]
+        );
+        worst = worst.max(du).max(dv);
+    }
+    println!(
+        "WGSL hemi_oct_encode: {} directions, worst difference {worst:.2e} texel",
+        dirs.len()
+    );
+}
