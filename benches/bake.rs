@@ -1,4 +1,4 @@
-//! Bake and transfer benchmarks (issue #3): `cargo bench --bench bake --no-default-features`.
+//! Bake and transfer benchmarks: `cargo bench --bench bake --no-default-features`.
 //!
 //! Inputs: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings (decisions
 //! made and the mesh refined, as `glint bake` does). Prints, per run (two runs, so the second shows

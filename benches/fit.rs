@@ -1,4 +1,4 @@
-//! Fit benchmarks (issue #4): `cargo bench --bench fit`. Prints median times over repeated runs.
+//! Fit benchmarks: `cargo bench --bench fit`. Prints median times over repeated runs.
 //!
 //! Problems: the real transfer of the bunny under courtyard (default view, isotropic J = 24) at the
 //! fit resolution 160×120 and at full resolution 640×480; and transfers of the same size with J =

@@ -1,4 +1,4 @@
-//! Render benchmarks (issue #5): `cargo bench --bench render`. Prints median times of the CPU PRT
+//! Render benchmarks: `cargo bench --bench render`. Prints median times of the CPU PRT
 //! frame (shade the view's points, interpolate; 2 threads here) and of building the p(h) table.
 //!
 //! Inputs: bunny.glb under studio_512 and dragon_100k.glb (49,892 vertices) under courtyard_1k,
@@ -12,7 +12,7 @@
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
-use glint::render::table::{PhTable, default_resolution};
+use glint::render::table::{PhPyramid, default_resolution};
 use glint::sphere::{LobeLayout, LobeSet, srbf};
 use std::time::Instant;
 
@@ -46,9 +46,9 @@ fn main() {
     (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
     let coefficients = [c.as_slice(), c.as_slice(), c.as_slice()];
     let t_table = time(5, || {
-        PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()))
+        PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()))
     });
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     println!(
         "p(h) table {}² with {} filtered levels ({:.1} MB): build {:.1} ms",
         table.resolution(),

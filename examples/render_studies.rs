@@ -12,7 +12,7 @@ use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
-use glint::render::table::{PhTable, default_resolution};
+use glint::render::table::{PhPyramid, default_resolution};
 use render_cases::*;
 
 /// A study's setting: `KEY=VALUE` on the command line (in place of an environment variable).
@@ -156,7 +156,7 @@ fn diagnose() {
                 c.tangents.as_deref(),
                 settings,
             );
-            let table = PhTable::build(&lobes, coef, default_resolution(lobes.lambda()));
+            let table = PhPyramid::build(&lobes, coef, default_resolution(lobes.lambda()));
             let t0 = std::time::Instant::now();
             let img = prt.render(
                 &light,
@@ -332,7 +332,7 @@ fn profile_frame() {
     let mut co = vec![0.0; lobes.len()];
     (co[0], co[3], co[9]) = (0.8, 0.5, 0.3);
     let coefficients = [co.as_slice(), co.as_slice(), co.as_slice()];
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
     let prt = Prt::new(
         &c.scene.mesh,
@@ -485,7 +485,7 @@ fn refine_study() {
     }
 }
 
-/// Study: issue 28's case (bunny under samples/studio_1k, orbit 20,15,2.5,
+/// Study: the grazing sharp-lobe case (bunny under samples/studio_1k, orbit 20,15,2.5,
 /// environment turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a
 /// time, and its worst pixels. `cargo run --example render_studies -- sharp_lobe_diagnose`
 /// (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
@@ -592,7 +592,7 @@ fn sharp_lobe_diagnose() {
         m.coefficients[2].as_slice(),
     ];
     let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let d = PrtSettings::default();
     let variants = [
         ("exact lobes", d, true),
@@ -773,22 +773,22 @@ fn sharp_lobe_diagnose() {
     }
 }
 
-/// Study: issue 28's remaining error split by ingredient at chosen pixels, by quadrature over the
-/// direction set's texels (k×k sub-directions each, env `K`, default 6; 4 suffices), green channel,
-/// noise-free: Q_mc = Σ L(d) V_ray(d) f_r(d) cos dω with L read as the reference reads it (nearest
-/// texel), on the imported mesh (what Monte Carlo estimates); on the PRT's (refined) mesh: Q_geo
-/// (the same; its rays leave the refined mesh's smooth surface but hit the imported mesh, so a few
-/// pixels self-shadow: an artefact of this tool), Q_leafL (L constant per leaf, as in `LightSums`),
-/// Q_cutV (and V from the corners' cuts per leaf: the PRT's own inputs, the BRDF integrated
-/// exactly), and Q with the map's own L and the cuts' V. Pixels: the `N` (default 40) worst by the
-/// PRT's error against MC, `N` at random, and every `STRIDE`-th (default 3) seen at wo·n < `GZ`
-/// (default 0.3); the last class is also patched into the PRT frame (RGB, map L, cut V) to show
-/// what resolving the light and the BRDF inside leaves at those points would give against MC. `RES`
-/// bakes at that direction-set resolution; `ALL` prints every pixel. Bunny, rotation 90°, K = 4,
-/// wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5 %, Q
-/// with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette 4.02 %;
-/// unpatched 5.92 / 8.23 %). `cargo run --example render_studies -- sharp_lobe_quadrature` (MESH,
-/// ORBIT, ROT, SPP).
+/// Study: the grazing case's remaining error split by ingredient at chosen pixels, by quadrature
+/// over the direction set's texels (k×k sub-directions each, env `K`, default 6; 4 suffices), green
+/// channel, noise-free: Q_mc = Σ L(d) V_ray(d) f_r(d) cos dω with L read as the reference reads it
+/// (nearest texel), on the imported mesh (what Monte Carlo estimates); on the PRT's (refined) mesh:
+/// Q_geo (the same; its rays leave the refined mesh's smooth surface but hit the imported mesh, so
+/// a few pixels self-shadow: an artefact of this tool), Q_leafL (L constant per leaf, as in
+/// `LightSums`), Q_cutV (and V from the corners' cuts per leaf: the PRT's own inputs, the BRDF
+/// integrated exactly), and Q with the map's own L and the cuts' V. Pixels: the `N` (default 40)
+/// worst by the PRT's error against MC, `N` at random, and every `STRIDE`-th (default 3) seen at
+/// wo·n < `GZ` (default 0.3); the last class is also patched into the PRT frame (RGB, map L, cut V)
+/// to show what resolving the light and the BRDF inside leaves at those points would give against
+/// MC. `RES` bakes at that direction-set resolution; `ALL` prints every pixel. Bunny, rotation 90°,
+/// K = 4, wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5
+/// %, Q with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette
+/// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --example render_studies -- sharp_lobe_quadrature`
+/// (MESH, ORBIT, ROT, SPP).
 fn sharp_lobe_quadrature() {
     use glam::{DVec3, Vec3A};
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
@@ -937,7 +937,7 @@ fn sharp_lobe_quadrature() {
             m.coefficients[1].as_slice(),
             m.coefficients[2].as_slice(),
         ];
-        let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+        let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
         prt.render(
             &light,
             &camera,

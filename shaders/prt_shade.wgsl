@@ -119,7 +119,7 @@ fn horizon_point(a: vec3<f32>, b: vec3<f32>, ha: f32, hb: f32) -> vec3<f32> {
 // walked edge by edge without being stored: the part of each texel edge above the horizon, then the
 // horizon arc from where the boundary leaves the hemisphere to where it comes back. (A first version
 // stored the polygon in a dynamically indexed local array; on lavapipe that dropped leaves from the sum,
-// 8 % in the white furnace test of tests/gpu.rs.)
+// 8 % in the white furnace test of tests/it/gpu.rs.)
 fn clipped_cosine_integral(leaf: GpuLeaf, n: vec3<f32>) -> f32 {
     // The four edges by calls, not a loop: every loop iteration counts against lavapipe's budget (see
     // `shade`).

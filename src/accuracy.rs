@@ -20,7 +20,7 @@ use crate::env::EnvMap;
 use crate::fit::material::{FitStats, Material};
 use crate::light::LightSums;
 use crate::render::{
-    ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table,
+    ExactMaterial, Image, PhPyramid, Prt, PrtSettings, Shading, Specular, render_reference, table,
 };
 use crate::scene::{Bounds, Camera, Mesh, Scene, default_camera, orbit_camera};
 use crate::sphere::{LobeLayout, LobeSet, srbf};
@@ -429,7 +429,7 @@ pub fn run(
                             m.coefficients[2].as_slice(),
                         ];
                         let t0 = Instant::now();
-                        let tab = PhTable::build(
+                        let tab = PhPyramid::build(
                             &lobes,
                             coefficients,
                             table::default_resolution(lobes.lambda()),

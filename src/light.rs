@@ -403,6 +403,26 @@ impl LightSums {
     }
 }
 
+/// Rec. 709 luminance weights (where the light of a run comes from is weighed by luminance).
+pub const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// The luminance of an RGB triple.
+#[inline]
+pub fn luminance(rgb: [f64; 3]) -> f64 {
+    rgb[0] * LUMINANCE[0] + rgb[1] * LUMINANCE[1] + rgb[2] * LUMINANCE[2]
+}
+
+/// A light's spread v_ω = 1 − |moment| / power (0 for no power): 0 for a point, → 1 for an even
+/// spread.
+#[inline]
+pub fn spread(moment: DVec3, power: f64) -> f64 {
+    if power > 0.0 {
+        (1.0 - moment.length() / power).max(0.0)
+    } else {
+        0.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

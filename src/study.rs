@@ -1,4 +1,4 @@
-//! The accuracy-against-time study (issue #8): starting from the defaults, sweep each accuracy knob
+//! The accuracy-against-time study: starting from the defaults, sweep each accuracy knob
 //! in turn and measure what it costs and what it buys.
 //!
 //! Per setting: bake (visibility cuts), transfer (T for the fit view), fit (strokes → lobes), a CPU
@@ -28,7 +28,7 @@ use crate::fit::run::{Baked, FitSettings, camera_for, default_layout, fit};
 use crate::fit::strokes::ViewStrokes;
 use crate::light::LightSums;
 use crate::render::{
-    ExactMaterial, Image, PhTable, Prt, PrtSettings, Shading, Specular, render_reference, table,
+    ExactMaterial, Image, PhPyramid, Prt, PrtSettings, Shading, Specular, render_reference, table,
 };
 use crate::scene::{Camera, Scene};
 use crate::sphere::{LobeLayout, LobeSet, srbf};
@@ -388,7 +388,7 @@ fn settings(
     }
     // The paper: J = 147 (its hemicube needs a tangent field; a scene without one gets 147 rings),
     // σ = π/40, fit at 160×120. The paper's N_l = 192 energy rows are always in glint's set, which
-    // adds 64 near-horizon rows and the normal (257 in all; method.md §9, tests/properties.rs).
+    // adds 64 near-horizon rows and the normal (257 in all; method.md §9, tests/it/properties.rs).
     if quick {
         return rows;
     }
@@ -615,7 +615,7 @@ pub fn run(
                     .table_resolution
                     .unwrap_or_else(|| table::default_resolution(mlobes.lambda()));
                 let frame = || {
-                    let tab = PhTable::build(&mlobes, coefficients, resolution);
+                    let tab = PhPyramid::build(&mlobes, coefficients, resolution);
                     let prt = Prt::new(
                         &b.scene.mesh,
                         &b.bake.cuts,
@@ -742,6 +742,10 @@ fn escape(s: &str) -> String {
 
 /// `study.svg`: relative RMSE against total seconds (log scale), one colour per knob, the Pareto
 /// front joined by a line, the default ringed.
+///
+/// Written by hand, not with a plotting crate: one scatter plot with a log axis is ~130 lines of
+/// SVG text and needs no dependency, where `plotters` would add its crates (and fonts) to every
+/// build of the library for this one chart; the test below checks the file parses and escapes.
 pub fn svg(rows: &[StudyRow], front: &[bool], title: &str) -> String {
     let (w, h, ml, mr, mt, mb) = (760.0, 480.0, 70.0, 220.0, 40.0, 50.0);
     let pts: Vec<(usize, f64, f64)> = rows

@@ -33,8 +33,8 @@
 use crate::bake::{Cuts, Span, for_each_run};
 use crate::brdf::dbrdf::{half_vector_cosines_masked, static_term, static_term_parts};
 use crate::light::LightSums;
+use crate::light::{LUMINANCE, luminance, spread};
 use crate::raster::{Fragment, rasterize};
-use crate::render::prt::{LUMINANCE, luminance, spread};
 use crate::scene::{Camera, Mesh};
 use crate::sphere::light_tree::{
     COARSE_HORIZON_LEAVES, Partition, PartitionCone, disc_clipped_cosine,
@@ -156,7 +156,7 @@ impl RingFilter {
     /// equator (dt/dθ = ½ there), so 20/σ intervals put 10 points within its σ in t, where linear
     /// interpolation is within (1/10)²/8 ≈ 1.3e-3 of its peak (and averages out over a run's spread
     /// of half-vectors). Paper lobes (σ = π/40) get 256; sharp ones more (λ = 5000: 1472), where a
-    /// fixed 256 gave 3.9 % instead of 2.8 % in `tests/hard_cases.rs`.
+    /// fixed 256 gave 3.9 % instead of 2.8 % in `tests/it/hard_cases.rs`.
     const RES_PER_INVERSE_SIGMA: f64 = 20.0;
     /// Table intervals, at least and at most (a multiple of 64 in between).
     const RES_RANGE: (usize, usize) = (256, 4096);
@@ -390,14 +390,14 @@ struct Scratch {
 /// The shading partitions of ring (isotropic) lobe sets: (node half-angle in units of the lobe's σ,
 /// the smallest wo·n of a pixel that uses it), coarsest first. A lobe σ wide in half-vector space
 /// is about 2σ·(wo·h) wide in wi-space along one axis, so grazing views need finer nodes. What the
-/// node size costs, measured 2026-11-24 (release, 2 cores):
-/// - alone, under a uniform sky (`tests/hard_cases.rs`, one ring lobe along n at the paper's σ on a
-///   sphere, against brute-force albedo, relative L1 over the image): every pixel at σ/4 0.08 %,
-///   σ/2 0.21 %, 0.75σ 0.44 %, σ 0.73 %, 1.5σ 1.6 % (pre-filtering takes 1.5σ from 2.3 % to 1.6 %);
-///   these tiers 0.41 % (0.75σ from wo·n ≥ 0.6: 0.27 %; 1.5σ: 0.67 %);
-/// - with visibility (`tests/transfer.rs`, suzanne under courtyard, T against direct integration):
-///   at wo·n < 0.15 nodes of σ or σ/2 are 2.4–4.6 % off where σ/4 is 0.8–1.7 %; the test's 14
-///   pixels 0.58 % (σ/4 everywhere 0.43 %);
+/// node size costs (release, 2 cores):
+/// - alone, under a uniform sky (`tests/it/hard_cases.rs`, one ring lobe along n at the paper's σ
+///   on a sphere, against brute-force albedo, relative L1 over the image): every pixel at σ/4 0.08
+///   %, σ/2 0.21 %, 0.75σ 0.44 %, σ 0.73 %, 1.5σ 1.6 % (pre-filtering takes 1.5σ from 2.3 % to 1.6
+///   %); these tiers 0.41 % (0.75σ from wo·n ≥ 0.6: 0.27 %; 1.5σ: 0.67 %);
+/// - with visibility (`tests/it/transfer.rs`, suzanne under courtyard, T against direct
+///   integration): at wo·n < 0.15 nodes of σ or σ/2 are 2.4–4.6 % off where σ/4 is 0.8–1.7 %; the
+///   test's 14 pixels 0.58 % (σ/4 everywhere 0.43 %);
 /// - time, dragon_100k's default view at 160×120 (2,681 pixels, 76 % at wo·n ≥ 0.6, 3.4 % below
 ///   0.15): 0.076 s against 0.30 s at σ/4 everywhere (0.109 s with 0.75σ first, 0.055 s with 1.5σ).
 const SHADING_TIERS: [(f64, f64); 4] = [(1.0, 0.6), (0.75, 0.3), (0.5, 0.15), (0.25, 0.0)];
@@ -405,7 +405,7 @@ const SHADING_TIERS: [(f64, f64); 4] = [(1.0, 0.6), (0.75, 0.3), (0.5, 0.15), (0
 /// The widest shading node of the tiers (radians, ~6.9°): wide lobes (σ of 30° and more, λ ≲ 2) are
 /// not evaluated over nodes of σ, which would be far wider than the Gaussian spread the filter
 /// models well (never finer than σ/4, the single partition before the tiers: λ = 1 in
-/// `tests/hard_cases.rs` is 8.7 % off with uncapped tiers from 1.5σ, 0.34 % with this cap). The
+/// `tests/it/hard_cases.rs` is 8.7 % off with uncapped tiers from 1.5σ, 0.34 % with this cap). The
 /// paper's σ = π/40 = 0.079 is unaffected.
 const MAX_SHADING_ANGLE: f64 = 0.12;
 

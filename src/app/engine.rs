@@ -24,7 +24,7 @@ use crate::fit::strokes::ViewSpec;
 use crate::gpu::{GpuContext, GpuPreview};
 use crate::light::LightSums;
 use crate::render::prt::ShadingMesh;
-use crate::render::{Image, PhTable, Prt, PrtSettings, Shading, Specular, VertexLight, table};
+use crate::render::{Image, PhPyramid, Prt, PrtSettings, Shading, Specular, VertexLight, table};
 use crate::scene::{Camera, Scene};
 use crate::sphere::{DirectionSet, LightTree};
 use glam::Vec4;
@@ -73,7 +73,7 @@ impl std::str::FromStr for PreviewChoice {
 
 /// The settings the preview renderers use: the mesh's own vertices are shaded (the wgpu preview's
 /// compute pass shades vertices; the CPU frame does the same so that the two show the same picture,
-/// `tests/gpu.rs`). The wgpu preview takes the default partition (8°); the CPU preview uses 16°
+/// `tests/it/gpu.rs`). The wgpu preview takes the default partition (8°); the CPU preview uses 16°
 /// nodes, which halve its frame time for ≤ 0.2 points against Monte Carlo (`cargo test --test
 /// render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %, teapot 12.83 / 12.99 %; dragon_100k at 640×480:
 /// 0.30 s / 0.15 s, `cargo bench --bench render`) and clips nodes of up to 64 leaves astride a
@@ -98,7 +98,7 @@ fn preview_settings(gpu: bool) -> PrtSettings {
 /// The CPU preview's horizon clip ([`PrtSettings::horizon_leaves`]): nodes of ≤ 64 leaves (~11°)
 /// astride a vertex's horizon are clipped whole by the disc model. dragon_100k at 640×480 under
 /// courtyard, vertex shading at 16°: the first frame after a light rotation 0.131 → 0.099 s, 2.6e-3
-/// relative RMSE against clipping leaf by leaf (4.9e-4 at the default 16 leaves), 2026-11-24.
+/// relative RMSE against clipping leaf by leaf (4.9e-4 at the default 16 leaves).
 pub const CPU_PREVIEW_HORIZON_LEAVES: u32 = 64;
 
 /// The CPU preview's render partition (degrees), see [`preview_settings`].
@@ -162,7 +162,7 @@ pub struct Engine {
     /// Lobes, energy rows, transfers and the warm start, kept across fits.
     session: FitSession,
     /// ρd, F0 and the table on the GPU now (re-uploaded when the preview is rebuilt).
-    shown: Option<([f64; 3], f64, Option<PhTable>)>,
+    shown: Option<([f64; 3], f64, Option<PhPyramid>)>,
     material: Option<Material>,
 }
 
@@ -494,7 +494,7 @@ impl Engine {
         let specular = material.coefficients.iter().flatten().any(|c| *c > 0.0);
         let table = specular.then(|| {
             let c = &material.coefficients;
-            PhTable::build(
+            PhPyramid::build(
                 &lobes,
                 [&c[0], &c[1], &c[2]],
                 table::default_resolution(lobes.lambda()),

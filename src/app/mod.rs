@@ -1,4 +1,4 @@
-//! The painting app (`glint app`, issue #7): a thin egui shell over the library's stage functions.
+//! The painting app (`glint app`): a thin egui shell over the library's stage functions.
 //!
 //! - [`state`]: the document (strokes per view in the `glint fit` format, settings), undo/redo, the
 //!   session file — pure, tested without a display;

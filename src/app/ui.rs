@@ -35,8 +35,8 @@ pub struct AppOptions {
 }
 
 impl AppOptions {
-    /// Options from files, checked before a window opens: the scene and the map must exist, a replay
-    /// must parse as strokes and a session as a session.
+    /// Options from files, checked before a window opens: the scene and the map must exist, a
+    /// replay must parse as strokes and a session as a session.
     pub fn from_files(
         scene: PathBuf,
         env: PathBuf,
@@ -152,19 +152,13 @@ pub fn env_maps_in(folder: &std::path::Path) -> Vec<PathBuf> {
     maps
 }
 
-/// Linear radiance → sRGB8 with the exposure and the ACES filmic fit the PNG writer uses.
+/// Linear radiance → sRGB8 as the PNG writer does ([`crate::render::image::tone_map`]).
 pub fn tone_map(image: &Image, exposure: f32) -> egui::ColorImage {
-    let curve = |x: f32| {
-        let x = (x * exposure).max(0.0);
-        let y = ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0);
-        let s = if y <= 0.003_130_8 {
-            12.92 * y
-        } else {
-            1.055 * y.powf(1.0 / 2.4) - 0.055
-        };
-        (s * 255.0 + 0.5) as u8
-    };
-    let rgb: Vec<u8> = image.pixels.iter().flat_map(|p| p.map(curve)).collect();
+    let rgb: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|x| crate::render::image::tone_map(x, exposure)))
+        .collect();
     egui::ColorImage::from_rgb([image.width as usize, image.height as usize], &rgb)
 }
 
@@ -561,7 +555,7 @@ impl GlintApp {
             .show(ui, |ui| {
                 // The panel is taller than the default window once the p(h) image is shown: it
                 // scrolls with the wheel, and its bar is always drawn so that one sees it can
-                // (tests/app_ui.rs). (egui's default floating bar is invisible until hovered: a
+                // (tests/it/app_ui.rs). (egui's default floating bar is invisible until hovered: a
                 // solid one instead.)
                 ui.spacing_mut().scroll = egui::style::ScrollStyle::solid();
                 egui::ScrollArea::vertical()

@@ -274,7 +274,7 @@ pub const RESOLUTION_REFERENCE: usize = 128;
 pub const RESOLUTION_TOLERANCE: f64 = 0.01;
 
 /// The coarsest candidate whose texels (90°/n across) are at most σ/2 wide, so that the transfer
-/// can evaluate the BRDF at one direction per texel: n ≥ π/σ. Measured (tests/transfer.rs,
+/// can evaluate the BRDF at one direction per texel: n ≥ π/σ. Measured (tests/it/transfer.rs,
 /// suzanne): T is 1.03 % off direct integration at n = 32 and 0.59 % at n = 64 for σ = π/40.
 pub fn brdf_resolution(lambda: f64) -> usize {
     let sigma = srbf::sigma_from_lambda(lambda).unwrap_or(0.08);

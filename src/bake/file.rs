@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 /// Current format version; bump on any change of layout or meaning, or of how the same inputs are
 /// baked (so that a bake made the old way is rebuilt, not reused). 6: vertices traced after all
-/// take their sampled neighbours' agreed visibility cells (2026-11-24).
+/// take their sampled neighbours' agreed visibility cells.
 pub const FORMAT_VERSION: u32 = 6;
 const MAGIC: &[u8; 8] = b"GLINTBAK";
 

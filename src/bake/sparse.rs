@@ -28,9 +28,9 @@
 //!    with what result) and casts rays for the rest. A cell's visibility then differs from its own
 //!    ray's only where an occluder's edge passes between the vertex and every one of its
 //!    neighbours' rays along the cell, all pointing the same way from points within `min_edge` of
-//!    it. Measured on dragon_100k under courtyard (`tests/bake_visibility.rs`, 400 vertices against
-//!    a ray per direction): those vertices' error 2.95 % against 2.83 % traced alone, 44 % fewer
-//!    rays over the sample; the whole bake 11.95 M → 8.50 M rays.
+//!    it. Measured on dragon_100k under courtyard (`tests/it/bake_visibility.rs`, 400 vertices
+//!    against a ray per direction): those vertices' error 2.95 % against 2.83 % traced alone, 44 %
+//!    fewer rays over the sample; the whole bake 11.95 M → 8.50 M rays.
 //!
 //! Inputs: the mesh's triangles and positions, the traced cuts, the light tree, the refinement's
 //! per-leaf weights. Outputs: which vertices are sampled, which are interpolated, and their cuts.

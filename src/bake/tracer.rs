@@ -115,10 +115,9 @@ impl Tracer {
 
     /// Any hit along the ray (origin, dir) for t in (0, ∞).
     ///
-    /// `#[inline]`: inlined into its callers, obvhs's traversal stays a function of its own; when
-    /// an unrelated change (the rasteriser's parallel split, 2026-11-24) left this function out of
-    /// line with the traversal inlined into it, dragon_100k's bake went 3.00–3.06 → 3.20–3.31 s
-    /// (rays/s 4.5 → 4.2 M; `cargo bench --bench bake`), and back to 3.05–3.10 s with this hint.
+    /// `#[inline]`: inlined into its callers, obvhs's traversal stays a function of its own. Out of
+    /// line, with the traversal inlined into it, dragon_100k's bake is about 6 % slower (rays/s
+    /// 4.5 → 4.2 M; `cargo bench --bench bake`).
     pub fn occluded(&self, origin: Vec3A, dir: Vec3A) -> bool {
         if self.triangles.is_empty() {
             return false;

@@ -61,8 +61,8 @@ impl Default for EnergyQuadrature {
 /// rings of 32 near the horizon for anisotropic lobes (257 in all); 32 elevations θ_k = (π/2)(k +
 /// ½)/32 at azimuth 0 plus one at the horizon for isotropic ones (33).
 ///
-/// The property test `tests/properties.rs` found both additions. The paper's 192 directions reach
-/// only 84.6° from the normal, and the directional albedo of a fitted p keeps rising towards
+/// The property test `tests/it/properties.rs` found both additions. The paper's 192 directions
+/// reach only 84.6° from the normal, and the directional albedo of a fitted p keeps rising towards
 /// grazing: a broad (λ = 1) fit had albedo 0.87 at the lowest row and 1.6 at the horizon. The rings
 /// at cos θ = 0.03 and on the horizon (cos θ = 1e-6) close that gap; below 84.6° the albedo of such
 /// fits is convex in cos θ, so it stays under the bound between the rows. And the normal is a

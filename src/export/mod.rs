@@ -24,7 +24,7 @@ pub use scene::{
 
 use crate::brdf::dbrdf::static_term;
 use crate::fit::material::Material;
-use crate::render::table::PhTable;
+use crate::render::table::PhPyramid;
 use crate::sphere::{LobeSet, SphereError};
 use glam::DVec3;
 use glint_exporters::{MaterialDesc, MerlTable};
@@ -48,7 +48,7 @@ pub const EXPORT_TABLE_RESOLUTION: usize = 512;
 /// The MERL table of the material's isotropic projection: for isotropic layouts the exact lobe sum
 /// (ring lobes depend on h·n only, so no averaging is needed); for anisotropic ones the BRDF from
 /// the table averaged over 8 rotations about the normal.
-pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhTable) -> MerlTable {
+pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhPyramid) -> MerlTable {
     let (rho_d, f0) = (material.rho_d, material.f0);
     if material.layout.is_isotropic() {
         return MerlTable::sample(|wi, wo| {
@@ -94,7 +94,7 @@ pub fn material_desc(
         material.coefficients[1].as_slice(),
         material.coefficients[2].as_slice(),
     ];
-    let table = PhTable::build_unfiltered(&lobes, coefficients, table_resolution);
+    let table = PhPyramid::build_unfiltered(&lobes, coefficients, table_resolution);
     let isotropic = material.layout.is_isotropic();
     let fit = material_fallback(material, &lobes, &table);
     if fit.fallback.anisotropy.is_some() {
@@ -120,10 +120,7 @@ pub fn material_desc(
         brdf_convention: glint_exporters::material::brdf_convention(isotropic).into(),
         frame_convention: glint_exporters::material::FRAME_CONVENTION.into(),
         provenance: provenance.into_map(),
-        table: glint_exporters::PhTable {
-            resolution: table.resolution() as u32,
-            texels: table.texels().to_vec(),
-        },
+        table: table.to_table(),
         fallback,
         merl: Some(merl),
     })

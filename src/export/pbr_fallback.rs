@@ -35,7 +35,7 @@
 use crate::brdf::dbrdf::static_term;
 use crate::fit::material::Material;
 use crate::math::Rng;
-use crate::render::table::PhTable;
+use crate::render::table::PhPyramid;
 use crate::sphere::{LobeSet, srbf};
 use glam::DVec3;
 use glint_exporters::PbrFallback;
@@ -70,7 +70,7 @@ fn eval_brdf(
 
 /// glint's BRDF from the table, in the local frame, without the cosine.
 pub(super) fn eval_table(
-    table: &PhTable,
+    table: &PhPyramid,
     rho_d: [f64; 3],
     f0: f64,
     wi: DVec3,
@@ -347,7 +347,7 @@ impl Samples {
 }
 
 /// Fits the (isotropic) pbrMetallicRoughness fallback to the BRDF given by `table`, ρd and F0.
-pub fn fit_fallback(table: &PhTable, rho_d: [f64; 3], f0: f64) -> PbrFallback {
+pub fn fit_fallback(table: &PhPyramid, rho_d: [f64; 3], f0: f64) -> PbrFallback {
     Samples::new(&|h| table.lookup(h), rho_d, f0).fit_isotropic()
 }
 
@@ -464,7 +464,7 @@ pub fn azimuthal_deviation(lobes: &LobeSet, coefficients: [&[f64]; 3]) -> f64 {
 /// The material's fallback: isotropic (exactly [`fit_fallback`]) for ring layouts and for p(h)
 /// within [`ISOTROPY_TOLERANCE`] of rotation invariance, else [`fit_fallback_anisotropic`] on the
 /// table.
-pub fn material_fallback(material: &Material, lobes: &LobeSet, table: &PhTable) -> FallbackFit {
+pub fn material_fallback(material: &Material, lobes: &LobeSet, table: &PhPyramid) -> FallbackFit {
     let coefficients = [
         material.coefficients[0].as_slice(),
         material.coefficients[1].as_slice(),
@@ -498,7 +498,7 @@ mod tests {
         // no lobes → metallic 0, base colour ≈ 0.6, error small.
         let lobes = LobeSet::new(crate::sphere::LobeLayout::Isotropic { count: 8 }, 20.0).unwrap();
         let zero = vec![0.0; lobes.len()];
-        let table = PhTable::build_unfiltered(&lobes, [&zero, &zero, &zero], 64);
+        let table = PhPyramid::build_unfiltered(&lobes, [&zero, &zero, &zero], 64);
         let fb = fit_fallback(&table, [0.6, 0.3, 0.1], 0.04);
         println!("{fb:?}");
         assert!(fb.metallic <= 0.1, "{fb:?}");
@@ -682,7 +682,7 @@ mod tests {
             base,
             FitStats::default(),
         );
-        let table = PhTable::build_unfiltered(lobes, [c, c, c], 256);
+        let table = PhPyramid::build_unfiltered(lobes, [c, c, c], 256);
         let deviation = azimuthal_deviation(lobes, [c, c, c]);
         let start = std::time::Instant::now();
         let fit = material_fallback(&material, lobes, &table);
@@ -801,11 +801,10 @@ mod tests {
             0.04,
             FitStats::default(),
         );
-        let table = PhTable::build_unfiltered(&lobes, [&c[0], &c[1], &c[2]], 64);
+        let table = PhPyramid::build_unfiltered(&lobes, [&c[0], &c[1], &c[2]], 64);
         let fit = material_fallback(&material, &lobes, &table);
-        // Equal to 5e-5: since 2026-11-23 isotropic tables fill their texels from a polar profile
-        // (within 1e-5 of the peak of summing the lobes per texel), which moved the fit in the 6th
-        // digit.
+        // Equal to 5e-5: isotropic tables fill their texels from a polar profile (within 1e-5 of
+        // the peak of summing the lobes per texel), which moves the fit in the 6th digit.
         let before = PbrFallback {
             base_color: [0.2382434196974623, 0.16797935706230402, 0.09771529413501599],
             metallic: 0.24000000000000002,
@@ -859,7 +858,7 @@ mod tests {
             0.04,
             FitStats::default(),
         );
-        let table = PhTable::build_unfiltered(&hemicube, [&c[0], &c[1], &c[2]], 64);
+        let table = PhPyramid::build_unfiltered(&hemicube, [&c[0], &c[1], &c[2]], 64);
         let fit = material_fallback(&material, &hemicube, &table);
         assert_eq!(fit.fallback, fit_fallback(&table, [0.2, 0.15, 0.1], 0.04));
         assert!(fit.fallback.anisotropy.is_none());
@@ -898,7 +897,7 @@ mod tests {
             0.5,
             FitStats::default(),
         );
-        let table = PhTable::build_unfiltered(&lobes, [&c, &c, &c], EXPORT_TABLE_RESOLUTION);
+        let table = PhPyramid::build_unfiltered(&lobes, [&c, &c, &c], EXPORT_TABLE_RESOLUTION);
         let start = std::time::Instant::now();
         let fit = material_fallback(&material, &lobes, &table);
         let seconds = start.elapsed().as_secs_f64();

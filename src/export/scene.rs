@@ -1,6 +1,6 @@
-//! The scene an export carries (glTF, USD, Mitsuba): the mesh with its tangent frames, the view as a
-//! camera and the environment, taken from a bake (what `glint render` renders) or from an imported
-//! scene.
+//! The scene an export carries (glTF, USD, Mitsuba): the mesh with its tangent frames, the view as
+//! a camera and the environment, taken from a bake (what `glint render` renders) or from an
+//! imported scene.
 //!
 //! Inputs: a [`SceneChoice`] (the command line's --bake or --scene, --env and view options).
 //! Output: a [`glint_exporters::SceneMesh`], and the files it came from in the [`Provenance`].

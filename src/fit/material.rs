@@ -41,8 +41,8 @@ pub struct FitStats {
 }
 
 impl FitStats {
-    /// Lines for people: pixels and views, residuals, active energy rows, iterations, solve time and
-    /// the notes (as `glint fit` prints them).
+    /// Lines for people: pixels and views, residuals, active energy rows, iterations, solve time
+    /// and the notes (as `glint fit` prints them).
     pub fn summary(&self) -> String {
         let r = self.residual_rms;
         let mut lines = vec![format!(

@@ -43,7 +43,7 @@ pub struct NormalEquations {
 
 /// Rows gathered per GEMM call: a block of √W·[T | y] (≈ 1.2 MB at J = 147) stays in cache, where
 /// gathering all N rows first cost as much as the product itself (20 ms of 55 ms per channel at
-/// 640×480, J = 147, measured 2026-11-23).
+/// 640×480, J = 147).
 const GATHER_ROWS: usize = 512;
 
 /// Forms H = TᵀWT and TᵀW·(B − ρd/π E) for `channel` over all views, f64.

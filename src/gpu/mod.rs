@@ -9,11 +9,11 @@
 //!   checked against naga's layouts in tests).
 //!
 //! Inputs: mesh, cuts, light tree, tangents, [`crate::light::LightSums`], a material (ρd, F0, a
-//! [`crate::render::PhTable`]), a camera. Outputs: per-vertex radiance and
+//! [`crate::render::PhPyramid`]), a camera. Outputs: per-vertex radiance and
 //! [`crate::render::Image`]s. Invariants: the GPU evaluates the CPU reference's equations in f32
-//! over the same runs (tests compare them: tests/gpu.rs); light sums are formed in f64 on the CPU
-//! per light-tree node, so the GPU never subtracts prefix sums; no IO besides the device; errors
-//! are [`GpuError`] values, never panics (a missing adapter is an error the CLI reports).
+//! over the same runs (tests compare them: tests/it/gpu.rs); light sums are formed in f64 on the
+//! CPU per light-tree node, so the GPU never subtracts prefix sums; no IO besides the device;
+//! errors are [`GpuError`] values, never panics (a missing adapter is an error the CLI reports).
 
 pub mod context;
 pub mod preview;
@@ -86,7 +86,7 @@ pub fn preview_frame(
         settings,
     )?;
     let c = &material.coefficients;
-    let t = table::PhTable::build(
+    let t = table::PhPyramid::build(
         &lobes,
         [&c[0], &c[1], &c[2]],
         table::default_resolution(lobes.lambda()),

@@ -12,7 +12,7 @@
 //! - per frame: the eye and the camera.
 //!
 //! Shading evaluates the mesh's own vertices (the CPU renderer's `max_edge_px = 0` setting); the
-//! CPU frame at that setting is its reference (tests/gpu.rs). Invariants: every GPU call runs
+//! CPU frame at that setting is its reference (tests/it/gpu.rs). Invariants: every GPU call runs
 //! inside an error scope and failures come back as [`GpuError`]; buffers are checked against the
 //! device limits before they are made.
 
@@ -20,7 +20,7 @@ use super::uniforms::*;
 use super::{GpuContext, GpuError};
 use crate::bake::Cuts;
 use crate::light::LightSums;
-use crate::render::{Image, PhTable, PrtSettings};
+use crate::render::{Image, PhPyramid, PrtSettings};
 use crate::scene::{Camera, Mesh};
 use crate::sphere::LightTree;
 use glam::{Vec3, Vec4};
@@ -75,9 +75,8 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
 /// The loop iterations one shader invocation may take on llvmpipe, the software rasteriser behind
 /// Mesa's lavapipe: it ends all of a shader's loops once 65,535 iterations have run in total
 /// (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by every loop and counted per SIMD group of invocations),
-/// silently. Until 2026-11-24 that made the preview drop runs at 8° partitions (white furnace 0.55
-/// off) and darken one bunny vertex with a 408-node cut by 5 %: `prt_shade.wgsl` now runs one flat
-/// loop.
+/// silently. Nested loops made the preview drop runs at 8° partitions (white furnace 0.55 off) and
+/// darken one bunny vertex with a 408-node cut by 5 %, so `prt_shade.wgsl` runs one flat loop.
 pub const SOFTWARE_LOOP_BUDGET: u64 = 65_535;
 
 /// An upper bound on the iterations of `prt_shade.wgsl`'s loop for any vertex: a step per run or
@@ -380,7 +379,7 @@ impl GpuPreview {
         &mut self,
         rho_d: [f64; 3],
         f0: f64,
-        table: Option<&PhTable>,
+        table: Option<&PhPyramid>,
     ) -> Result<(), GpuError> {
         self.uniforms.rho_d_f0 = [rho_d[0] as f32, rho_d[1] as f32, rho_d[2] as f32, f0 as f32];
         let mut flags = self.uniforms.table[1] & FLAG_TANGENTS;

@@ -57,7 +57,7 @@ pub fn prt_frame(
         bake.tangents.as_deref(),
         PrtSettings::default(),
     );
-    let t = table::PhTable::build(
+    let t = table::PhPyramid::build(
         &lobes,
         [&c[0], &c[1], &c[2]],
         table::default_resolution(lobes.lambda()),

@@ -157,7 +157,7 @@ impl Image {
         let rgb: Vec<u8> = self
             .pixels
             .iter()
-            .flat_map(|p| p.map(|v| encode_srgb(aces(v.max(0.0) * exposure))))
+            .flat_map(|p| p.map(|v| tone_map(v, exposure)))
             .collect();
         let img =
             image::RgbImage::from_raw(self.width, self.height, rgb).ok_or("image size mismatch")?;
@@ -166,6 +166,12 @@ impl Image {
             .map_err(|e| e.to_string())?;
         Ok(out.into_inner())
     }
+}
+
+/// A linear value as the PNG writer and the app show it: times `exposure`, the ACES filmic curve
+/// ([`aces`]), then sRGB-encoded to 8 bits.
+pub fn tone_map(linear: f32, exposure: f32) -> u8 {
+    encode_srgb(aces(linear.max(0.0) * exposure))
 }
 
 /// ACES filmic curve fit (Narkowicz 2015), input linear, output in [0, 1].

@@ -21,4 +21,4 @@ pub mod table;
 pub use image::{Image, ImageError};
 pub use prt::{Prt, PrtSettings, Shading, Specular, VertexLight};
 pub use reference::{ExactMaterial, render_reference};
-pub use table::PhTable;
+pub use table::PhPyramid;

@@ -13,9 +13,9 @@
 //!   exact up to that clip, per-leaf constant radiance and V's bake;
 //! - ω_run = the direction of the run's luminance-weighted moment (where its light comes from: a
 //!   sun inside a large run is seen where it is), and its spread v_ω = 1 − |moment|/power;
-//! - p̃ = p pre-filtered by that spread in half-vector space ([`PhTable::lookup_filtered`]), so
+//! - p̃ = p pre-filtered by that spread in half-vector space ([`PhPyramid::lookup_filtered`]), so
 //!   coarse runs do not alias sharp lobes; `prefilter: false` evaluates p at ω_run alone. Isotropic
-//!   tables are read from their polar profiles ([`PhTable::lookup_profile_filtered`]) unless
+//!   tables are read from their polar profiles ([`PhPyramid::lookup_profile_filtered`]) unless
 //!   `texel_lookups`. Shaded per pixel, the spread is the ellipse's peak-matched one
 //!   ([`half_vector_spread`]) and points seen at grazing angles use finer partitions
 //!   ([`GRAZING_TIERS`]); the vertex modes keep the wgpu preview's geometric-mean spread and one
@@ -24,7 +24,7 @@
 //! With `merge_runs` (the default) the runs of one render-partition node are summed first — Σ V·P,
 //! Σ V·moment and Σ V·power — and the BRDF is evaluated once per node at that visible light's
 //! direction and spread: cuts refined at shadow edges split a node into many small runs that the
-//! node's angle does not need apart (the frame moves by < 0.2 %, `tests/render.rs`). The wgpu
+//! node's angle does not need apart (the frame moves by < 0.2 %, `tests/it/render.rs`). The wgpu
 //! preview sums per run.
 //!
 //! Shading points: by default (`per_pixel`) eq. 22 is evaluated at every covered pixel's own
@@ -43,10 +43,11 @@
 //! on the thread count; f64 sums.
 
 use super::image::Image;
-use super::table::{PhTable, filtered_exact};
+use super::table::{PhPyramid, filtered_exact};
 use crate::bake::{Cuts, Span, for_each_run};
 use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
 use crate::light::LightSums;
+use crate::light::{LUMINANCE, luminance, spread};
 use crate::raster::{rasterize, rasterize_triangles};
 use crate::scene::{Camera, Mesh};
 use crate::sphere::light_tree::Partition;
@@ -54,9 +55,6 @@ use crate::sphere::{Frame, LightTree, LobeSet};
 use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 use std::collections::HashMap;
-
-/// Rec. 709 luminance weights (where the light of a run comes from is weighed by luminance).
-pub const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Knobs of the PRT renderer.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -92,16 +90,16 @@ pub struct PrtSettings {
     /// With `per_pixel`: points seen at grazing angles are summed over finer render partitions
     /// ([`GRAZING_TIERS`]): a lobe σ wide in half-vector space covers only about 2σ·(wo·h) of wi
     /// across the plane of wi and wo, far less than a node of `partition_deg` there, and no
-    /// isotropic pre-filter of a node's light stands in for that (issue 28). Off: one partition for
+    /// isotropic pre-filter of a node's light stands in for that. Off: one partition for
     /// every point.
     pub grazing_tiers: bool,
 }
 
 impl Default for PrtSettings {
-    /// Chosen by measurement at 160×120 (tests/render.rs, `diagnose`): against the per-pixel
+    /// Chosen by measurement at 160×120 (tests/it/render.rs, `diagnose`): against the per-pixel
     /// transfer render the bunny's PRT frame is 12.5 % off with vertex shading only, 5.6 % at
     /// 2-pixel and 2.1 % at 1-pixel shading triangles, and 0.44 % shaded per pixel (the default,
-    /// which is also the fastest of the three at the same picture, 2026-11-24). The partition angle
+    /// which is also the fastest of the three at the same picture). The partition angle
     /// matters little thanks to the radiance-weighted run directions and pre-filtering: PRT vs
     /// Monte Carlo at 4° / 8° / 16° is 5.28 / 5.29 / 5.31 %
     /// (bunny) and 20.09 / 20.06 / 20.27 % (teapot), PRT vs transfer 1.10 / 1.15 / 1.35 % (teapot);
@@ -123,9 +121,9 @@ impl Default for PrtSettings {
 /// The finer render partitions of grazing views ([`PrtSettings::grazing_tiers`]): (largest node
 /// half-angle in degrees, the view cosine wo·n below which a point uses it), finest first; a point
 /// at or above the last cosine uses `partition_deg`. The angles are those of the transfer's tiers
-/// for the paper's σ = π/40 (σ/4 and σ/2). Measured on issue 28's case (bunny, studio_1k, orbit
-/// 20,15,2.5, environment turned 90°, one sharp ring lobe along n, 160×120): see `tests/render.rs`,
-/// `sharp_lobe_at_grazing_views_against_monte_carlo`.
+/// for the paper's σ = π/40 (σ/4 and σ/2). Measured on the grazing sharp-lobe case (bunny,
+/// studio_1k, orbit 20,15,2.5, environment turned 90°, one sharp ring lobe along n, 160×120): see
+/// `tests/it/render.rs`, `sharp_lobe_at_grazing_views_against_monte_carlo`.
 pub const GRAZING_TIERS: [(f64, f64); 2] = [(1.125, 0.3), (2.25, 0.6)];
 
 /// A render-partition node's light under one rotation: per channel its radiant moment, and the
@@ -136,23 +134,6 @@ pub const GRAZING_TIERS: [(f64, f64); 2] = [(1.125, 0.3), (2.25, 0.6)];
 struct NodeLight {
     radiant: [DVec3; 3],
     lum_power: f64,
-}
-
-/// The luminance of an RGB triple.
-#[inline]
-pub(crate) fn luminance(rgb: [f64; 3]) -> f64 {
-    rgb[0] * LUMINANCE[0] + rgb[1] * LUMINANCE[1] + rgb[2] * LUMINANCE[2]
-}
-
-/// A light's spread v_ω = 1 − |moment| / power (0 for no power): 0 for a point, → 1 for an even
-/// spread.
-#[inline]
-pub(crate) fn spread(moment: DVec3, power: f64) -> f64 {
-    if power > 0.0 {
-        (1.0 - moment.length() / power).max(0.0)
-    } else {
-        0.0
-    }
 }
 
 /// The spread of a run's light in half-vector space (per-axis variance, rad²) for p's pre-filter.
@@ -166,8 +147,8 @@ pub(crate) fn spread(moment: DVec3, power: f64) -> f64 {
 /// lobe on both axes. At grazing views b ≫ σ² ≳ a, and a lobe (variance σ² = 1/(2λ) per axis)
 /// filtered by that ellipse peaks at σ²/√((σ² + a)(σ² + b)), well below the geometric mean's σ²/(σ²
 /// + √(ab)): with `anisotropic` the isotropic spread with that same peak, √((σ² + a)(σ² + b)) − σ²,
-/// which is √(ab) again where a, b ≫ σ² and a = b = v_ω/4 at normal incidence (issue 28: the
-/// bunny's sharp lobe at grazing views, 28.8 → 17.9 % off Monte Carlo with one 8° partition).
+/// which is √(ab) again where a, b ≫ σ² and a = b = v_ω/4 at normal incidence (the grazing case:
+/// the bunny's sharp lobe at grazing views, 28.8 → 17.9 % off Monte Carlo with one 8° partition).
 #[inline]
 pub fn half_vector_spread(v_omega: f64, wo_h: f64, lambda: f64, anisotropic: bool) -> f64 {
     let c = wo_h.max(1e-3);
@@ -192,7 +173,7 @@ pub enum Specular<'a> {
     /// No specular term (diffuse only).
     None,
     /// The tabulated p (what frames use).
-    Table(&'a PhTable),
+    Table(&'a PhPyramid),
     /// The exact lobe sum (closed form, pre-filtered the same way): the table's reference.
     Exact {
         lobes: &'a LobeSet,

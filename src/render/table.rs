@@ -1,7 +1,7 @@
 //! The tabulated distribution p(h): what a frame reads instead of summing J lobes (method.md §7).
 //!
-//! Inputs: a lobe set and its 3 × J coefficients; a resolution R. Output: a [`PhTable`] of RGB p(h)
-//! on the hemi-octahedral map ([`crate::sphere::hemi_oct`]), sampled on a corner-aligned grid:
+//! Inputs: a lobe set and its 3 × J coefficients; a resolution R. Output: a [`PhPyramid`] of RGB
+//! p(h) on the hemi-octahedral map ([`crate::sphere::hemi_oct`]), sampled on a corner-aligned grid:
 //! texel (x, y) holds p at (u, v) = (x/(R − 1), y/(R − 1)), row-major, so the outermost texels lie
 //! on the horizon and bilinear interpolation covers the whole square without clamping (a half-texel
 //! clamp at the horizon cost up to 4 % of the peak there); plus a stack of *pre-filtered* levels
@@ -18,8 +18,12 @@
 //!
 //! Isotropic lobe sets (rings: p depends on θ_h only) are evaluated exactly on a polar profile per
 //! level, p at q = √(1 − cos θ_h) on 8 R + 1 points, and the texels interpolate it; the profile is
-//! kept for the CPU frame's lookups ([`PhTable::lookup_profile_filtered`]: no 2D interpolation
+//! kept for the CPU frame's lookups ([`PhPyramid::lookup_profile_filtered`]: no 2D interpolation
 //! error).
+//!
+//! One table type: the tabulated data is [`glint_exporters::PhTable`] (what files hold and readers
+//! look up); a [`PhPyramid`] is that table ([`PhPyramid::to_table`], level 0) plus the pre-filtered
+//! levels and profiles the renderers read.
 //!
 //! Invariants: texels ≥ 0 (coefficients are ≥ 0); levels shrink with the lobes' width, never below
 //! 16 texels a side; building only evaluates lobes whose support (G ≥ e^−14) reaches a texel (or,
@@ -44,9 +48,9 @@ struct Level {
     profile: Vec<[f32; 3]>,
 }
 
-/// p(h) tabulated, with pre-filtered levels.
+/// p(h) tabulated, with pre-filtered levels (level 0 is the [`glint_exporters::PhTable`]).
 #[derive(Debug, Clone)]
-pub struct PhTable {
+pub struct PhPyramid {
     lambda: f64,
     levels: Vec<Level>,
 }
@@ -60,7 +64,15 @@ pub fn default_resolution(lambda: f64) -> usize {
         .clamp(64, 2048)
 }
 
-impl PhTable {
+impl PhPyramid {
+    /// Level 0 as the tabulated data files hold.
+    pub fn to_table(&self) -> glint_exporters::PhTable {
+        glint_exporters::PhTable {
+            resolution: self.resolution() as u32,
+            texels: self.texels().to_vec(),
+        }
+    }
+
     /// Tabulates p(h) = Σ_j c_j G_j(h) per channel at `resolution` (level 0) and its pre-filtered
     /// levels.
     pub fn build(lobes: &LobeSet, coefficients: [&[f64]; 3], resolution: usize) -> Self {
@@ -181,12 +193,12 @@ impl PhTable {
     }
 
     /// Whether the table holds polar profiles (isotropic lobe sets):
-    /// [`PhTable::lookup_profile_filtered`].
+    /// [`PhPyramid::lookup_profile_filtered`].
     pub fn has_profile(&self) -> bool {
         !self.levels[0].profile.is_empty()
     }
 
-    /// As [`PhTable::lookup_filtered`], from the levels' polar profiles instead of their texels
+    /// As [`PhPyramid::lookup_filtered`], from the levels' polar profiles instead of their texels
     /// (same levels, same blend): no 2D interpolation error and two cache lines per level instead
     /// of four texels spread over a 2D grid. `None` for anisotropic tables.
     #[inline]
@@ -318,7 +330,7 @@ fn tabulate_direct(
 /// profile over q = √(1 − cos θ_h) ∈ [0, 1] and each texel interpolates it linearly (J lobe
 /// evaluations per profile sample instead of per texel: 18 levels of 256² texels took 0.2 s, the
 /// profile a few ms). The profile is kept: the CPU frame reads it instead of the texels
-/// ([`PhTable::lookup_profile_filtered`]).
+/// ([`PhPyramid::lookup_profile_filtered`]).
 fn tabulate_isotropic(
     lobes: &LobeSet,
     active: &[usize],
@@ -441,7 +453,7 @@ mod tests {
                 LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
             let c = random_coefficients(lobes.len(), 5);
             let cr = [c[0].as_slice(), c[1].as_slice(), c[2].as_slice()];
-            let table = PhTable::build(&lobes, cr, default_resolution(lobes.lambda()));
+            let table = PhPyramid::build(&lobes, cr, default_resolution(lobes.lambda()));
             let mut rng = Rng::new(9);
             let peak = (0..2000)
                 .map(|_| lobes.p(&c[0], rng.hemisphere_vector()))
@@ -467,7 +479,7 @@ mod tests {
             );
             // Measured at R = 256: hemicube 8.3e-3 of the peak, 1.3e-2 relative near peaks
             // (bilinear flattens the lobes' tops where the map's texels are widest); renders
-            // average this down to < 0.1 % (tests/render.rs).
+            // average this down to < 0.1 % (tests/it/render.rs).
             assert!(
                 worst_peak < 1e-2 && worst_half < 1.5e-2,
                 "{}: {worst_peak} {worst_half}",
@@ -539,7 +551,7 @@ mod tests {
         .unwrap();
         let c = random_coefficients(lobes.len(), 21);
         let cr = [c[0].as_slice(), c[1].as_slice(), c[2].as_slice()];
-        let table = PhTable::build(&lobes, cr, default_resolution(lobes.lambda()));
+        let table = PhPyramid::build(&lobes, cr, default_resolution(lobes.lambda()));
         assert!(table.has_profile());
         let mut rng = Rng::new(3);
         let peak = (0..2000)
@@ -574,7 +586,7 @@ mod tests {
         // Anisotropic tables have no profile.
         let aniso = LobeSet::new(LobeLayout::PAPER, lobes.lambda()).unwrap();
         let ca = random_coefficients(aniso.len(), 2);
-        let t = PhTable::build(&aniso, [&ca[0], &ca[1], &ca[2]], 64);
+        let t = PhPyramid::build(&aniso, [&ca[0], &ca[1], &ca[2]], 64);
         assert!(!t.has_profile() && t.lookup_profile_filtered(DVec3::Z, 0.0).is_none());
     }
 
@@ -588,7 +600,7 @@ mod tests {
             .unwrap();
         c[top] = 1.0; // the lobe nearest the pole
         let cr = [c.as_slice(), c.as_slice(), c.as_slice()];
-        let table = PhTable::build(&lobes, cr, 256);
+        let table = PhPyramid::build(&lobes, cr, 256);
         let top = (0..lobes.len())
             .max_by(|&a, &b| lobes.centres()[a].z.total_cmp(&lobes.centres()[b].z))
             .unwrap();

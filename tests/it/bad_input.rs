@@ -235,7 +235,7 @@ fn mesh_doc(
         buffer["uri"] = json!(uri);
     }
     let doc = json!({
-        "asset": {"version": "2.0", "generator": "glint tests/bad_input.rs"},
+        "asset": {"version": "2.0", "generator": "glint tests/it/bad_input.rs"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": "tetrahedron"}],
@@ -445,7 +445,7 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
     let mut doc = base_gltf_doc();
     doc["asset"]["version"] = json!("1.0");
     add("scene_gltf_1_0.gltf", gltf_text(&doc));
-    // A file that exists, one folder up (tests/bad_input.rs): refused before it is opened.
+    // A file that exists, one folder up (tests/it/bad_input.rs): refused before it is opened.
     add(
         "scene_buffer_uri_parent.gltf",
         gltf_with_uri("../bad_input.rs"),
@@ -559,7 +559,7 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
 
 /// Rewrites the committed corpus from [`corpus`] (run it after changing the generator).
 #[test]
-#[ignore = "writes tests/bad_input/; run by hand: cargo test --test bad_input -- --ignored write_corpus"]
+#[ignore = "writes tests/bad_input/; run by hand: cargo test --test it bad_input:: -- --ignored write_corpus"]
 fn write_corpus() {
     let dir = corpus_dir();
     std::fs::create_dir_all(&dir).unwrap();

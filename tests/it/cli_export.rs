@@ -349,7 +349,7 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
         ("prt.exr", vec!["--rotate", "45"]),
         ("mc.exr", vec!["--reference", "4"]),
     ];
-    // The wgpu preview where an adapter exists (always in CI: lavapipe; tests/gpu.rs checks its
+    // The wgpu preview where an adapter exists (always in CI: lavapipe; tests/it/gpu.rs checks its
     // values).
     if std::env::var("CI").is_ok_and(|v| v == "true") || glint::gpu::GpuContext::headless().is_ok()
     {
@@ -922,7 +922,7 @@ fn mesh_glb(mesh: &glint::scene::Mesh) -> Vec<u8> {
         .collect();
     let indices = push(idx, mesh.triangles.len() * 3, "SCALAR", 5125, None);
     let doc = serde_json::json!({
-        "asset": { "version": "2.0", "generator": "glint tests/cli_export.rs (write_brushed_sphere)", "copyright": "CC0-1.0 (generated)" },
+        "asset": { "version": "2.0", "generator": "glint tests/it/cli_export.rs (write_brushed_sphere)", "copyright": "CC0-1.0 (generated)" },
         "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
         "meshes": [{ "primitives": [{ "attributes": attributes, "indices": indices }] }],
         "accessors": accessors, "bufferViews": views, "buffers": [{ "byteLength": bin.len() }],
@@ -973,7 +973,7 @@ fn brushed_sphere_sample_matches_its_generator() {
 }
 
 #[test]
-#[ignore = "writes samples/brushed_sphere.glb; run by hand: cargo test --test cli_export -- --ignored write_brushed_sphere"]
+#[ignore = "writes samples/brushed_sphere.glb; run by hand: cargo test --test it cli_export:: -- --ignored write_brushed_sphere"]
 fn write_brushed_sphere() {
     std::fs::write(
         repo().join("samples/brushed_sphere.glb"),

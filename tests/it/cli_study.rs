@@ -1,4 +1,4 @@
-//! `glint study --quick` end to end (issue #8): the report files, their columns, and numbers that
+//! `glint study --quick` end to end: the report files, their columns, and numbers that
 //! must behave — the Monte Carlo reference's own error falls as its sample count grows (its noise
 //! is an independent check that the truth and the comparison work), every error is a finite
 //! fraction, and the Pareto front (time, error, fit residual) is non-empty and undominated.
@@ -121,7 +121,7 @@ fn quick_study_writes_csv_svg_and_markdown() {
     std::fs::remove_dir_all(dir).unwrap();
 }
 
-/// `glint study --matrix --quick` (issue 28's CI subset): every case of the bunny and the brushed
+/// `glint study --matrix --quick` (the CI subset): every case of the bunny and the brushed
 /// sphere under the studio map, three views, two rotations, the sharp, broad and anisotropic
 /// materials; the report's numbers are sane, the broad and anisotropic materials are within 2 % of
 /// the reference once its noise is taken out, and the sharp lobe within the bound it reaches today

@@ -1,4 +1,4 @@
-//! The wgpu preview against the CPU PRT renderer (issue #5), and every shader through naga.
+//! The wgpu preview against the CPU PRT renderer, and every shader through naga.
 //!
 //! The GPU tests need an adapter: in CI that is Mesa's lavapipe (`mesa-vulkan-drivers`, installed
 //! by `.ci/test`). Without one they fail under `CI=true` and are skipped with a message elsewhere.
@@ -10,7 +10,7 @@ use glint::fit::run::{Baked, FitSettings, fit};
 use glint::gpu::{GpuContext, GpuPreview};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, ShadingPoint, Specular};
-use glint::render::table::{PhTable, default_resolution};
+use glint::render::table::{PhPyramid, default_resolution};
 use wgpu::naga;
 
 #[test]
@@ -94,7 +94,7 @@ fn compare(ctx: &GpuContext, mesh: &str) {
         m.coefficients[1].as_slice(),
         m.coefficients[2].as_slice(),
     ];
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     // Vertex shading on both sides: the GPU preview shades the mesh's vertices; the default
     // partition (8°, what the app's wgpu preview uses). The CPU frame set to evaluate what the
     // shader evaluates: every leaf the horizon cuts clipped, p read from the 2D texels.
@@ -171,10 +171,10 @@ fn compare(ctx: &GpuContext, mesh: &str) {
             "{mesh} rotation {rotation}: {} vertices; per-vertex relative RMSE {vertex_rmse:.2e}, worst {worst:.2e} of the peak; {w}x{h} frame relative RMSE {image_rmse:.2e} over shared pixels, {only_one} of {covered} pixels covered by one renderer only; GPU frame {gpu_secs:.3} s",
             gpu_v.len()
         );
-        // f32 against f64: ~1e-6 on lavapipe. Until 2026-11-24 llvmpipe's loop budget (65,535
-        // iterations per shader, gpu::SOFTWARE_LOOP_BUDGET) cut nested loops short: one bunny
-        // vertex with a cut of 408 nodes came out 5 % dark (worst 5e-2), and at 8° most vertices
-        // went wrong.
+        // f32 against f64: ~1e-6 on lavapipe. llvmpipe's loop budget (65,535 iterations per
+        // shader, gpu::SOFTWARE_LOOP_BUDGET) cuts nested loops short: with them, one bunny vertex
+        // with a cut of 408 nodes came out 5 % dark (worst 5e-2), and at 8° most vertices went
+        // wrong.
         assert!(
             vertex_rmse < 1e-4,
             "{mesh}: per-vertex GPU vs CPU {vertex_rmse}"
@@ -236,7 +236,7 @@ fn white_furnace_and_not_ready() {
     let bake = baker.bake_all(None, &|_| {});
     let camera = &scene.cameras[0];
     // Every vertex at 1 for partitions from 2° to 32° (the default is 8°; at 8° and wider,
-    // lavapipe's loop budget made it 0.55 off until 2026-11-24), on the 64-per-side set.
+    // lavapipe's loop budget makes nested loops 0.55 off), on the 64-per-side set.
     assert_eq!(baker.tree.leaf_count(), 6 * 64 * 64);
     for partition_deg in [2.0, 8.0, 32.0] {
         let mut gpu = GpuPreview::new(
@@ -300,10 +300,10 @@ fn white_furnace_and_not_ready() {
     );
 }
 
-/// The WGSL copy of the hemi-octahedral encoding (shaders/prt_shade.wgsl) against the one definition
-/// (`glint_exporters::hemi_oct_encode`), run on the GPU: every texel direction of a 64² table, each
-/// also mirrored below the horizon (where folding and clamping differ), and degenerate vectors. The
-/// texel coordinates must agree to 1e-3 texel (f32 against f64).
+/// The WGSL copy of the hemi-octahedral encoding (shaders/prt_shade.wgsl) against the one
+/// definition (`glint_exporters::hemi_oct_encode`), run on the GPU: every texel direction of a 64²
+/// table, each also mirrored below the horizon (where folding and clamping differ), and degenerate
+/// vectors. The texel coordinates must agree to 1e-3 texel (f32 against f64).
 #[test]
 fn wgsl_hemi_oct_encode_matches_the_definition_on_every_texel() {
     use wgpu::util::DeviceExt as _;

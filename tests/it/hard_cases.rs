@@ -1,10 +1,11 @@
 //! The named hard cases of method.md §9 that no other test covered, each against an independent
 //! reference (a closed form, brute-force quadrature, or a second method). Cases tested elsewhere:
 //! grazing k1, k2 down to 1e-8 (`src/brdf/dbrdf.rs`), energy rows at λ = 1 and 5000 vs brute force
-//! (`tests/energy_table.rs`), λ(π/40) = 81.06 (`src/sphere/srbf.rs`), fits under a 1e5 sun and at
-//! λ = 1, 5000, a constant environment, impossible/empty/off-object strokes (`tests/fit.rs`,
-//! `tests/qp.rs`), texel sanitising and counting (`tests/env_maps.rs`, `tests/cli_inspect.rs`),
-//! missing and degenerate normals (`tests/gltf_import.rs`, `src/scene/geometry.rs`).
+//! (`tests/it/energy_table.rs`), λ(π/40) = 81.06 (`src/sphere/srbf.rs`), fits under a 1e5 sun and
+//! at λ = 1, 5000, a constant environment, impossible/empty/off-object strokes (`tests/it/fit.rs`,
+//! `tests/it/qp.rs`), texel sanitising and counting (`tests/it/env_maps.rs`,
+//! `tests/it/cli_inspect.rs`), missing and degenerate normals (`tests/it/gltf_import.rs`,
+//! `src/scene/geometry.rs`).
 
 use crate::common;
 
@@ -315,7 +316,7 @@ fn nan_inf_negative_texels_are_zeroed_and_later_stages_match_a_clean_map() {
     assert!(a.pixels.iter().flatten().all(|x| x.is_finite()));
     assert_eq!(a.pixels, b.pixels);
     // The CLI reports the count: `glint inspect` on an EXR with such texels is tested in
-    // tests/cli_inspect.rs (dwab_environments_decode_with_negative_texels_clamped_and_counted).
+    // tests/it/cli_inspect.rs (dwab_environments_decode_with_negative_texels_clamped_and_counted).
 }
 
 /// The sphere with extra triangles that have no area: a repeated index, three collinear points on

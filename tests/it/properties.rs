@@ -1,4 +1,4 @@
-//! Property tests (proptest, issue #9) of the BRDF's physical guarantees over random inputs:
+//! Property tests (proptest) of the BRDF's physical guarantees over random inputs:
 //!
 //! - f_s is finite, ≥ 0 and reciprocal for random lobe layouts, λ, non-negative coefficients, F0
 //!   and directions (grazing ones included);
@@ -117,7 +117,7 @@ fn graded_breaks(lo: f64, hi: f64, features: &[(f64, f64)]) -> Vec<f64> {
 /// where h = normalize(wi + wo) depends on the *direction* from −wo to wi only: near −wo, h sweeps
 /// the whole circle ⟂ wo (where the Fresnel factor is ~1) within any small disc. A ring at angular
 /// distance δ from −wo sees that as a bright feature ~δ wide. A 32-point trapezoid rule on such
-/// rings made the albedo of a λ = 8 lobe 4 % high at wo.z = 5e-4 (the CI failure of 2026-11-22). So
+/// rings made the albedo of a λ = 8 lobe 4 % high at wo.z = 5e-4 (a case CI found). So
 /// the radius is split at the ring through −wo, and a ring passing within a few tenths of −wo, or
 /// crossing the horizon, is integrated on Gauss–Legendre panels graded towards the point nearest
 /// −wo and towards its horizon crossings.
@@ -284,7 +284,7 @@ fn cap_quadrature_matches_a_full_hemisphere_grid() {
     }
 }
 
-/// The case CI found on 2026-11-22: a broad lobe (λ = 8.35) near the normal, seen from wo.z = 5e-4,
+/// A case CI found: a broad lobe (λ = 8.35) near the normal, seen from wo.z = 5e-4,
 /// where the ring through the patch at −wo had made the cap rule 4 % high (albedo 1.0215 reported
 /// for a fit whose true albedo is 0.999). The grid at 800² points is converged here to 1e-4 (400²:
 /// 0.07 % off, 200²: 0.7 %).

@@ -1,4 +1,4 @@
-//! The renderers against each other (method.md §7, issue #5): the CPU PRT render (default settings,
+//! The renderers against each other (method.md §7): the CPU PRT render (default settings,
 //! tabulated p) against the Monte Carlo reference (exact visibility, exact lobes, the environment
 //! map itself, 4096 spp) on the bunny and the teapot; the table against the exact lobe sum; a white
 //! furnace.
@@ -12,9 +12,9 @@ use glint::env::EnvMap;
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 
-use glint::render::table::{PhTable, default_resolution};
+use glint::render::table::{PhPyramid, default_resolution};
 
-// The issue's goal is PRT vs Monte Carlo within 2 %: met (2026-11-24: bunny 1.27 %, teapot 1.70 %),
+// The goal is PRT vs Monte Carlo within 2 %: met (bunny 1.27 %, teapot 1.70 %),
 // baked as `glint bake` does — the mesh refined where visibility changes (decision (e)) and, under
 // the studio's small bright lights, cells at shadow edges traced again at half and a quarter of the
 // cell (decision (d)'s boundary refinement; 2.11 % and 3.40 % without it) — and shaded per pixel.
@@ -105,13 +105,13 @@ fn cached_frames_equal_direct_frames() {
             m.coefficients[1].as_slice(),
             m.coefficients[2].as_slice(),
         ];
-        let table = PhTable::build(&lobes, co, default_resolution(lobes.lambda()));
+        let table = PhPyramid::build(&lobes, co, default_resolution(lobes.lambda()));
         let halved: Vec<Vec<f64>> = m
             .coefficients
             .iter()
             .map(|ch| ch.iter().map(|x| 0.5 * x).collect())
             .collect();
-        let table2 = PhTable::build(
+        let table2 = PhPyramid::build(
             &lobes,
             [&halved[0], &halved[1], &halved[2]],
             default_resolution(lobes.lambda()),

@@ -10,7 +10,7 @@ use glint::fit::run::{Baked, FitSettings, fit};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
-use glint::render::table::{PhTable, default_resolution};
+use glint::render::table::{PhPyramid, default_resolution};
 use glint::scene::Scene;
 
 pub struct Case {
@@ -121,7 +121,7 @@ pub fn compare(mesh: &str, w: u32, h: u32) -> Errors {
         c.tangents.as_deref(),
         PrtSettings::default(),
     );
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let t0 = std::time::Instant::now();
     let tab = prt.render(
         &light,
@@ -297,7 +297,7 @@ pub fn prt_and_transfer(
     ];
     let camera = &c.scene.cameras[0];
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let shading = Shading {
         rho_d: m.rho_d,
         f0: m.f0,
@@ -419,7 +419,7 @@ pub fn prt_and_mc(
         c.tangents.as_deref(),
         settings,
     );
-    let table = PhTable::build(&lobes, coefficients, default_resolution(lobes.lambda()));
+    let table = PhPyramid::build(&lobes, coefficients, default_resolution(lobes.lambda()));
     let t0 = std::time::Instant::now();
     let img = prt.render(
         &light,

@@ -1,6 +1,6 @@
 //! `glint demo`: the headless main job on the bundled sample, each step a `glint` subcommand run as
-//! a child process (bake, fit, render before/after/rotated, export), so the demo shows exactly what a
-//! user's commands do.
+//! a child process (bake, fit, render before/after/rotated, export), so the demo shows exactly what
+//! a user's commands do.
 
 use anyhow::{Context, Result};
 use std::path::Path;
