@@ -3,6 +3,10 @@
 //! in docs/benchmarks.md; tests/it/render.rs holds the assertions). Run one by name with KEY=VALUE
 //! settings, e.g. `cargo run --release --example render_studies -- diagnose MESH=teapot`.
 
+// Studies index parallel arrays (RGB channels, texels) in one loop, as the quadratures are written;
+// the bake settings are built field by field as each study varies them.
+#![allow(clippy::needless_range_loop, clippy::field_reassign_with_default)]
+
 #[path = "../tests/it/common.rs"]
 mod common;
 #[path = "../tests/it/render_cases.rs"]

@@ -8,6 +8,12 @@
 //! shares. Stages are free functions over plain data; IO lives only in the importers and at the CLI
 //! edge. See `ARCHITECTURE.md` for the code map and the invariants.
 
+// Numeric code indexes parallel arrays (RGB channels, per-vertex buffers) in one loop, as the
+// formulas are written; iterator zips of three or four slices read worse.
+#![allow(clippy::needless_range_loop)]
+// `!(x > 0.0)` is written on purpose: it is also true for NaN, which these tests must reject.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod accuracy;
 #[cfg(feature = "gui")]
 pub mod app;

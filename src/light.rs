@@ -325,6 +325,7 @@ impl LightSums {
     /// wholly above by their radiant moments (exact up to per-leaf constant radiance; `moment` is
     /// [a, z)'s own, already read), the nodes of ≤ `coarse_leaves` leaves astride it clipped at
     /// their mean radiance. Shared by the transfer and the PRT renderer.
+    #[allow(clippy::too_many_arguments)] // the node, the horizon and the clip's knobs: plain numbers
     pub fn clipped_cosine_power(
         &self,
         tree: &LightTree,

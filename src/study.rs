@@ -454,10 +454,9 @@ pub fn run(
     // Every bake first, before the truths' and transfers' large allocations: bakes timed after them
     // ran 2-3x slower than alone (bunny, 11.25° cells: 1.03 s in the study, 0.29 s alone).
     for (i, (knob, value, k)) in plan.iter().enumerate() {
-        if !bakes.contains_key(&k.bake_key()) {
+        if let std::collections::hash_map::Entry::Vacant(slot) = bakes.entry(k.bake_key()) {
             progress(i, plan.len(), &format!("baking for {knob} = {value}"));
-            let b = run_bake(scene, env, k)?;
-            bakes.insert(k.bake_key(), b);
+            slot.insert(run_bake(scene, env, k)?);
         }
     }
     for (i, (knob, value, k)) in plan.iter().enumerate() {
@@ -913,6 +912,55 @@ pub fn write_report(
     Ok(written)
 }
 
+/// What `glint study` did: the files written and a one-line summary of the defaults.
+pub struct StudyReport {
+    pub written: Vec<std::path::PathBuf>,
+    pub summary: Option<String>,
+}
+
+/// `glint study`: reads the scene, the map and the strokes, sweeps ([`run`]) and writes study.csv,
+/// study.svg and study.md into `out` ([`write_report`]).
+pub fn run_study(
+    scene_path: &Path,
+    env_path: &Path,
+    strokes_path: &Path,
+    quick: bool,
+    out: &Path,
+    progress: &dyn Fn(usize, usize, &str),
+) -> Result<StudyReport, StudyError> {
+    let scene = crate::scene::import(scene_path)?;
+    let env = crate::env::load(env_path)?;
+    let text = std::fs::read_to_string(strokes_path)
+        .map_err(|e| StudyError::Input(format!("cannot read {}: {e}", strokes_path.display())))?;
+    let strokes = crate::fit::strokes::parse(&text).map_err(|source| StudyError::Strokes {
+        path: strokes_path.display().to_string(),
+        source,
+    })?;
+    let start = Instant::now();
+    let rows = run(&scene, &env, &strokes, &StudyOptions { quick }, progress)?;
+    let name = |p: &Path| {
+        p.file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    let title = format!(
+        "glint study: {} under {}{} — {} settings, {:.0} s on {} threads",
+        name(scene_path),
+        name(env_path),
+        if quick { " (quick)" } else { "" },
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        rayon::current_num_threads()
+    );
+    let written = write_report(out, &rows, &title)?;
+    let front = pareto_front(&rows);
+    let on_front = front.iter().filter(|p| **p).count();
+    let summary = rows.iter().find(|r| r.is_default).map(|r| {
+        format!("defaults: {:.2} s, {:.2} % against Monte Carlo; {on_front} of {} settings on the Pareto front", r.total_secs(), 100.0 * r.rel_rmse, rows.len())
+    });
+    Ok(StudyReport { written, summary })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -983,53 +1031,4 @@ mod tests {
             "header, separator, two rows"
         );
     }
-}
-
-/// What `glint study` did: the files written and a one-line summary of the defaults.
-pub struct StudyReport {
-    pub written: Vec<std::path::PathBuf>,
-    pub summary: Option<String>,
-}
-
-/// `glint study`: reads the scene, the map and the strokes, sweeps ([`run`]) and writes study.csv,
-/// study.svg and study.md into `out` ([`write_report`]).
-pub fn run_study(
-    scene_path: &Path,
-    env_path: &Path,
-    strokes_path: &Path,
-    quick: bool,
-    out: &Path,
-    progress: &dyn Fn(usize, usize, &str),
-) -> Result<StudyReport, StudyError> {
-    let scene = crate::scene::import(scene_path)?;
-    let env = crate::env::load(env_path)?;
-    let text = std::fs::read_to_string(strokes_path)
-        .map_err(|e| StudyError::Input(format!("cannot read {}: {e}", strokes_path.display())))?;
-    let strokes = crate::fit::strokes::parse(&text).map_err(|source| StudyError::Strokes {
-        path: strokes_path.display().to_string(),
-        source,
-    })?;
-    let start = Instant::now();
-    let rows = run(&scene, &env, &strokes, &StudyOptions { quick }, progress)?;
-    let name = |p: &Path| {
-        p.file_name()
-            .map(|f| f.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    };
-    let title = format!(
-        "glint study: {} under {}{} — {} settings, {:.0} s on {} threads",
-        name(scene_path),
-        name(env_path),
-        if quick { " (quick)" } else { "" },
-        rows.len(),
-        start.elapsed().as_secs_f64(),
-        rayon::current_num_threads()
-    );
-    let written = write_report(out, &rows, &title)?;
-    let front = pareto_front(&rows);
-    let on_front = front.iter().filter(|p| **p).count();
-    let summary = rows.iter().find(|r| r.is_default).map(|r| {
-        format!("defaults: {:.2} s, {:.2} % against Monte Carlo; {on_front} of {} settings on the Pareto front", r.total_secs(), 100.0 * r.rel_rmse, rows.len())
-    });
-    Ok(StudyReport { written, summary })
 }

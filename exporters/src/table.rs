@@ -32,8 +32,8 @@ pub const DEFAULT_TABLE_RESOLUTION: u32 = 512;
 pub const MAX_TABLE_RESOLUTION: u32 = 16384;
 
 /// The local half-vector (unit, z ≥ 0) at table coordinates (u, v) ∈ [0, 1]². The one definition:
-/// glint's renderers (`glint::sphere::hemi_oct` re-exports it), the exporters, and the WGSL copy in
-/// shaders/prt_shade.wgsl (checked against this on every texel by the GPU tests).
+/// glint's renderers (the library's `sphere::hemi_oct` re-exports it), the exporters, and the WGSL
+/// copy in shaders/prt_shade.wgsl (checked against this on every texel by the GPU tests).
 pub fn hemi_oct_decode(u: f64, v: f64) -> [f64; 3] {
     let a = 2.0 * u - 1.0;
     let b = 2.0 * v - 1.0;

@@ -166,20 +166,11 @@ impl Settings {
 }
 
 /// What one undo step restores: the strokes of every view and the settings.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Document {
     pub settings: Settings,
     /// Strokes per view, in the `glint fit` stroke format.
     pub views: Vec<ViewStrokes>,
-}
-
-impl Default for Document {
-    fn default() -> Self {
-        Self {
-            settings: Settings::default(),
-            views: Vec::new(),
-        }
-    }
 }
 
 impl Document {

@@ -658,19 +658,17 @@ impl GlintApp {
             if response.drag_started_by(egui::PointerButton::Primary) {
                 self.stroke = Some(Vec::new());
             }
-            if response.dragged_by(egui::PointerButton::Primary)
-                || response.drag_started_by(egui::PointerButton::Primary)
-            {
-                if let Some(p) = response
+            if (response.dragged_by(egui::PointerButton::Primary)
+                || response.drag_started_by(egui::PointerButton::Primary))
+                && let Some(p) = response
                     .interact_pointer_pos()
                     .and_then(|p| self.screen_to_view(p))
-                    && let Some(points) = &mut self.stroke
-                    && points
-                        .last()
-                        .is_none_or(|q: &[f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) >= 1.0)
-                {
-                    points.push(p);
-                }
+                && let Some(points) = &mut self.stroke
+                && points
+                    .last()
+                    .is_none_or(|q: &[f64; 2]| (q[0] - p[0]).hypot(q[1] - p[1]) >= 1.0)
+            {
+                points.push(p);
             }
             if response.drag_stopped_by(egui::PointerButton::Primary)
                 && let Some(points) = self.stroke.take()

@@ -262,6 +262,7 @@ fn run(
 }
 
 /// The worker's loop over commands and bake results.
+#[allow(clippy::too_many_arguments)] // the worker's channels and shared state, each of its own kind
 fn serve(
     engine: &mut Engine,
     rx: &Receiver<Msg>,

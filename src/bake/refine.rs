@@ -308,7 +308,9 @@ mod tests {
                 if !above {
                     continue;
                 }
-                if node.is_leaf() || (node.count <= 8 << depth_bias && (k + seed) % 3 != 0) {
+                if node.is_leaf()
+                    || (node.count <= 8 << depth_bias && !(k + seed).is_multiple_of(3))
+                {
                     out.push((k, ((k * 37 + seed) % 11) as f32 / 10.0));
                 } else {
                     stack.push(node.right);

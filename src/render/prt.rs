@@ -56,6 +56,9 @@ use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+/// A shading point's distinct corners with their weights, how many, position, normal and frame.
+type PointGeometry = ([(u32, f64); 3], usize, DVec3, DVec3, Frame);
+
 /// Knobs of the PRT renderer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PrtSettings {
@@ -539,10 +542,7 @@ impl<'a> Prt<'a> {
 
     /// The point's distinct corners with positive weight (a vertex point has one), its position,
     /// normal and shading frame; `None` for a degenerate point.
-    fn point_geometry(
-        &self,
-        point: &ShadingPoint,
-    ) -> Option<([(u32, f64); 3], usize, DVec3, DVec3, Frame)> {
+    fn point_geometry(&self, point: &ShadingPoint) -> Option<PointGeometry> {
         let mut corners: [(u32, f64); 3] = [(0, 0.0); 3];
         let mut count = 0;
         for i in 0..3 {
@@ -726,6 +726,7 @@ impl<'a> Prt<'a> {
     /// `v_omega`; `None` when that direction is below the horizon or undefined, or there is no
     /// specular term.
     #[inline]
+    #[allow(clippy::too_many_arguments)] // one run's light moments and the point's frame: plain numbers
     fn run_specular(
         &self,
         lum_moment: DVec3,

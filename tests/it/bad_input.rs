@@ -775,7 +775,7 @@ fn run_cases(kind: Kind) -> (Vec<String>, Vec<String>) {
             }
         }
         for (label, argv, r) in runs {
-            let args: Vec<&std::ffi::OsStr> = argv.iter().map(|p| os(p)).collect();
+            let args: Vec<&std::ffi::OsStr> = argv.iter().map(os).collect();
             let o = glint_limited(&args);
             lines.push(format!(
                 "{label}: exit {:?}: {}",

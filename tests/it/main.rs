@@ -1,6 +1,10 @@
 //! The integration tests, one crate (one link of wgpu and eframe): a module per subject.
 //! Shared helpers live in `common`; `tidy` enforces the house rules (tests/it/tidy.rs).
 
+// Tests index parallel arrays (RGB channels, expected values) in one loop, as the checks are
+// stated.
+#![allow(clippy::needless_range_loop)]
+
 #[macro_use]
 mod common;
 

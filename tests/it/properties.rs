@@ -151,7 +151,7 @@ fn lobe_albedo_wi(brdf: &DistributionBrdf, j: usize, wo: DVec3, rule: &GaussLege
     let minus_wo = -wo;
     let t_star = centre.dot(minus_wo).clamp(-1.0, 1.0).acos();
     let phi_star = minus_wo.dot(v).atan2(minus_wo.dot(u));
-    let mut breaks = vec![
+    let mut breaks = [
         0.0,
         elevation.min(radius),
         (PI - elevation).min(radius),

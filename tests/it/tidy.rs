@@ -1,6 +1,9 @@
-//! House rules that a reviewer would otherwise check by hand: every Rust module of the product
-//! opens with a `//!` doc (its inputs, outputs and invariants), and the exporters crate depends on
-//! nothing of the pipeline.
+//! House rules that a reviewer would otherwise check by hand: every Rust module opens with a `//!`
+//! doc (its inputs, outputs and invariants); the exporters crate depends on nothing of the
+//! pipeline; library modules import only from earlier stages (the layers below); ARCHITECTURE.md's
+//! code map names every module; the CLI's main.rs stays a thin shell; no test reads an environment
+//! variable that could change what it asserts, and none writes outside the temporary folder; no
+//! comment or document keeps dated history. (`cargo fmt --check` and clippy run in .ci/test.)
 
 use std::path::{Path, PathBuf};
 
@@ -19,8 +22,16 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
 fn every_module_opens_with_a_module_doc() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut files = Vec::new();
-    rust_files(&root.join("src"), &mut files);
-    rust_files(&root.join("exporters/src"), &mut files);
+    for dir in [
+        "src",
+        "exporters/src",
+        "tests",
+        "benches",
+        "examples",
+        "fuzz/fuzz_targets",
+    ] {
+        rust_files(&root.join(dir), &mut files);
+    }
     assert!(files.len() > 10);
     let missing: Vec<_> = files
         .iter()
@@ -69,7 +80,7 @@ fn only_the_gpu_and_app_modules_know_wgpu() {
         .filter(|f| {
             let rel = f.strip_prefix(root.join("src")).unwrap();
             let allowed =
-                rel.starts_with("gpu") || rel.starts_with("app") || rel == Path::new("main.rs");
+                rel.starts_with("gpu") || rel.starts_with("app") || rel.starts_with("bin");
             !allowed && std::fs::read_to_string(f).unwrap().contains("wgpu::")
         })
         .collect();
@@ -77,4 +88,211 @@ fn only_the_gpu_and_app_modules_know_wgpu() {
         offenders.is_empty(),
         "wgpu outside src/gpu and src/app: {offenders:?}"
     );
+}
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The library's layers in data-flow order: a module may import (`crate::…`) only from its own
+/// layer or earlier ones. ARCHITECTURE.md explains each.
+const LAYERS: &[&[&str]] = &[
+    &["math"],
+    &["sphere"],
+    &["scene", "env"],
+    &["raster"],
+    &["brdf"],
+    &["light"],
+    &["bake"],
+    &["transfer"],
+    &["fit"],
+    &["render", "material_file"],
+    &["export", "gpu", "inspect"],
+    &["study"],
+    &["accuracy"],
+    &["app"],
+];
+
+/// The library's non-test code of one file (what follows `#[cfg(test)]` is left out).
+fn product_code(path: &Path) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    let end = text.find("#[cfg(test)]").unwrap_or(text.len());
+    text[..end]
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn library_modules_import_only_from_earlier_stages() {
+    let layer_of = |m: &str| LAYERS.iter().position(|l| l.contains(&m));
+    let mut files = Vec::new();
+    rust_files(&root().join("src"), &mut files);
+    let mut offences = Vec::new();
+    for f in files {
+        let rel = f.strip_prefix(root().join("src")).unwrap();
+        if rel.starts_with("bin") || rel == Path::new("lib.rs") {
+            continue;
+        }
+        let first = rel
+            .components()
+            .next()
+            .unwrap()
+            .as_os_str()
+            .to_string_lossy()
+            .trim_end_matches(".rs")
+            .to_string();
+        let own =
+            layer_of(&first).unwrap_or_else(|| panic!("src/{first} is in no layer of LAYERS"));
+        let code = product_code(&f);
+        for (i, _) in code.match_indices("crate::") {
+            let name: String = code[i + 7..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                .collect();
+            if let Some(l) = layer_of(&name)
+                && l > own
+            {
+                offences.push(format!("{} imports crate::{name}", rel.display()));
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "imports against the data flow: {offences:?}"
+    );
+}
+
+#[test]
+fn the_code_map_names_every_module() {
+    let map = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    // Bullets of the code map: "- `path` — …" and their continuation lines.
+    let mut bullets: Vec<String> = Vec::new();
+    for line in map.lines() {
+        if line.starts_with("- `") {
+            bullets.push(line.to_string());
+        } else if line.starts_with("  ") && !bullets.is_empty() {
+            let last = bullets.last_mut().unwrap();
+            last.push(' ');
+            last.push_str(line.trim());
+        }
+    }
+    let head = |b: &str| b[3..].split('`').next().unwrap_or("").to_string();
+    let mut files = Vec::new();
+    rust_files(&root().join("src"), &mut files);
+    rust_files(&root().join("exporters/src"), &mut files);
+    let mut missing = Vec::new();
+    for f in files {
+        let rel = f
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        let (dir, name) = rel.rsplit_once('/').unwrap();
+        let named = bullets.iter().any(|b| {
+            let h = head(b);
+            h == rel
+                || (h == format!("{dir}/")
+                    && (name == "mod.rs" || b.contains(&format!("`{name}`"))))
+        });
+        if !named {
+            missing.push(rel);
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "ARCHITECTURE.md's code map does not name: {missing:?}"
+    );
+}
+
+#[test]
+fn the_cli_main_is_a_thin_shell() {
+    let lines = std::fs::read_to_string(root().join("src/bin/glint/main.rs"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!(
+        lines <= 350,
+        "src/bin/glint/main.rs has {lines} lines (at most 350: logic belongs in the library)"
+    );
+}
+
+#[test]
+fn tests_read_no_knobs_and_write_only_to_temporary_folders() {
+    // CI=true turns a missing tool into a failure (never a pass); PROPTEST_CASES is proptest's own
+    // case count. No other variable may change what a test does.
+    const ALLOWED: &[&str] = &["\"CI\"", "\"PROPTEST_CASES\""];
+    let mut files = Vec::new();
+    rust_files(&root().join("tests"), &mut files);
+    let mut offences = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        let rel = f.strip_prefix(root()).unwrap().display().to_string();
+        for (i, _) in text.match_indices("env::var") {
+            let call = &text[i..text[i..].find(')').map_or(text.len(), |e| i + e)];
+            if !ALLOWED.iter().any(|a| call.contains(a)) && !rel.ends_with("tidy.rs") {
+                offences.push(format!("{rel}: {call})"));
+            }
+        }
+        if text.contains("\"/tmp") && !rel.ends_with("tidy.rs") {
+            offences.push(format!("{rel}: writes to /tmp (use std::env::temp_dir)"));
+        }
+    }
+    assert!(offences.is_empty(), "{offences:?}");
+}
+
+#[test]
+fn no_dated_history_in_code_or_docs() {
+    let mut files = Vec::new();
+    for dir in [
+        "src",
+        "exporters/src",
+        "tests",
+        "benches",
+        "examples",
+        "shaders",
+        "docs",
+    ] {
+        collect(&root().join(dir), &mut files);
+    }
+    files.push(root().join("README.md"));
+    files.push(root().join("ARCHITECTURE.md"));
+    let dated: Vec<String> = files
+        .iter()
+        .filter_map(|f| {
+            let text = std::fs::read_to_string(f).ok()?;
+            let hit = text.lines().find(|l| {
+                let b = l.as_bytes();
+                (0..b.len().saturating_sub(9)).any(|i| {
+                    b[i..i + 2] == *b"20"
+                        && b[i + 2..i + 4].iter().all(u8::is_ascii_digit)
+                        && b[i + 4] == b'-'
+                        && b[i + 5..i + 7].iter().all(u8::is_ascii_digit)
+                        && b[i + 7] == b'-'
+                        && b[i + 8..i + 10].iter().all(u8::is_ascii_digit)
+                })
+            })?;
+            Some(format!("{}: {hit}", f.display()))
+        })
+        .collect();
+    assert!(dated.is_empty(), "dated history (git keeps it): {dated:?}");
+}
+
+/// Every file under `dir` (Rust, WGSL, Markdown).
+fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            collect(&path, out);
+        } else if path
+            .extension()
+            .is_some_and(|e| e == "rs" || e == "wgsl" || e == "md")
+        {
+            out.push(path);
+        }
+    }
 }
