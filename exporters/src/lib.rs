@@ -27,7 +27,7 @@
 //!
 //! Texel (x, y) of an R×R table sits at u = x/(R−1), v = y/(R−1) (corner-aligned: the outer texels
 //! lie on the horizon); a = 2u−1, b = 2v−1, px = (a+b)/2, py = (a−b)/2, z = 1−|px|−|py| (always ≥
-//! 0), h = normalize(px, py, z) is the local half-vector. Inverse: l1 = |hx|+|hy|+hz, px = hx/l1,
+//! 0), h = normalize(px, py, z) is the local half-vector. Inverse: l1 = |hx|+|hy|+|hz|, px = hx/l1,
 //! py = hy/l1, u = (px+py+1)/2, v = (px−py+1)/2. Lookup is bilinear between the four texels around
 //! (u·(R−1), v·(R−1)); no clamping is needed. Row y = 0 is the first
 //! (top) scan line of the EXR. One definition: [`hemi_oct_decode`], [`hemi_oct_encode`],

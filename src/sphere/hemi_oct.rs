@@ -4,7 +4,7 @@
 //! Tables sample it on a corner-aligned grid: texel (x, y) of an R×R table sits at u = x/(R − 1),
 //! v = y/(R − 1), so the outer texels lie on the horizon. Decoding: a = 2u − 1,
 //! b = 2v − 1, px = (a + b)/2, py = (a − b)/2, z = 1 − |px| − |py| (never negative, since
-//! |px| + |py| = max(|a|, |b|)), h = normalize(px, py, z). Encoding: l1 = |hx| + |hy| + hz,
+//! |px| + |py| = max(|a|, |b|)), h = normalize(px, py, z). Encoding: l1 = |hx| + |hy| + |hz|,
 //! px = hx/l1, py = hy/l1, u = (px + py + 1)/2, v = (px − py + 1)/2. The map is continuous, covers
 //! the hemisphere once, and its texels' solid angles differ by at most a factor of about 2.
 //!

@@ -557,15 +557,16 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
     files
 }
 
-/// Rewrites the committed corpus from [`corpus`] (run it after changing the generator).
+/// Writes the corpus from [`corpus`] into a temporary folder and prints the command that copies it
+/// over the committed one (run it after changing the generator; tests write nowhere else).
 #[test]
-#[ignore = "writes tests/bad_input/; run by hand: cargo test --test it bad_input:: -- --ignored write_corpus"]
+#[ignore = "run by hand: cargo test --test it bad_input:: -- --ignored --nocapture write_corpus"]
 fn write_corpus() {
-    let dir = corpus_dir();
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::temp_dir("bad-input-corpus");
     for (name, bytes) in corpus() {
         std::fs::write(dir.join(name), bytes).unwrap();
     }
+    println!("cp {}/* {}/", dir.display(), corpus_dir().display());
 }
 
 #[test]

@@ -972,14 +972,18 @@ fn brushed_sphere_sample_matches_its_generator() {
     assert!(scene.mesh.tangents.is_some(), "the sample carries TANGENT");
 }
 
+/// Writes samples/brushed_sphere.glb's generator output into a temporary folder and prints the
+/// command that copies it over the sample (tests write nowhere else).
 #[test]
-#[ignore = "writes samples/brushed_sphere.glb; run by hand: cargo test --test it cli_export:: -- --ignored write_brushed_sphere"]
+#[ignore = "run by hand: cargo test --test it cli_export:: -- --ignored --nocapture write_brushed_sphere"]
 fn write_brushed_sphere() {
-    std::fs::write(
-        repo().join("samples/brushed_sphere.glb"),
-        mesh_glb(&tangent_scene()),
-    )
-    .unwrap();
+    let path = common::temp_dir("brushed-sphere").join("brushed_sphere.glb");
+    std::fs::write(&path, mesh_glb(&tangent_scene())).unwrap();
+    println!(
+        "cp {} {}",
+        path.display(),
+        repo().join("samples/brushed_sphere.glb").display()
+    );
 }
 
 /// (relative RMSE, object pixels, mean ratio a/b) of two RGBA EXRs over the pixels both cover
