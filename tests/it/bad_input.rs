@@ -71,7 +71,7 @@ const CASES: &[Case] = &[
     case("scene_gltf_1_0.gltf", &["asset.version", "2.x only"]),
     case(
         "scene_buffer_uri_parent.gltf",
-        &["../bad_input.rs", "outside the scene file's folder"],
+        &["../it/bad_input.rs", "outside the scene file's folder"],
     ),
     case(
         "scene_buffer_uri_absolute.gltf",
@@ -235,7 +235,7 @@ fn mesh_doc(
         buffer["uri"] = json!(uri);
     }
     let doc = json!({
-        "asset": {"version": "2.0", "generator": "glint tests/it/bad_input.rs"},
+        "asset": {"version": "2.0", "generator": "glint tests/bad_input.rs"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": "tetrahedron"}],
@@ -445,10 +445,11 @@ fn corpus() -> Vec<(&'static str, Vec<u8>)> {
     let mut doc = base_gltf_doc();
     doc["asset"]["version"] = json!("1.0");
     add("scene_gltf_1_0.gltf", gltf_text(&doc));
-    // A file that exists, one folder up (tests/it/bad_input.rs): refused before it is opened.
+    // A file that exists outside the scene's folder (tests/it/bad_input.rs): refused before it is
+    // opened.
     add(
         "scene_buffer_uri_parent.gltf",
-        gltf_with_uri("../bad_input.rs"),
+        gltf_with_uri("../it/bad_input.rs"),
     );
     add(
         "scene_buffer_uri_absolute.gltf",

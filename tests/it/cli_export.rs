@@ -922,7 +922,7 @@ fn mesh_glb(mesh: &glint::scene::Mesh) -> Vec<u8> {
         .collect();
     let indices = push(idx, mesh.triangles.len() * 3, "SCALAR", 5125, None);
     let doc = serde_json::json!({
-        "asset": { "version": "2.0", "generator": "glint tests/it/cli_export.rs (write_brushed_sphere)", "copyright": "CC0-1.0 (generated)" },
+        "asset": { "version": "2.0", "generator": "glint tests/cli_export.rs (write_brushed_sphere)", "copyright": "CC0-1.0 (generated)" },
         "scene": 0, "scenes": [{ "nodes": [0] }], "nodes": [{ "mesh": 0 }],
         "meshes": [{ "primitives": [{ "attributes": attributes, "indices": indices }] }],
         "accessors": accessors, "bufferViews": views, "buffers": [{ "byteLength": bin.len() }],
