@@ -8,6 +8,11 @@
 //! preview (vertex shading) on the first adapter: on a machine without a GPU that is Mesa's
 //! lavapipe, which says nothing of a GPU's speed; the table says which adapter ran. Frame = shade +
 //! raster + readback of the image (the app skips the readback); light = the per-rotation upload.
+//! Last, the app's still frame: the preview frame (vertex shading, `app::engine::preview_settings`)
+//! and the still frame that replaces it once the view rests (`glint render`'s PRT frame), timed at
+//! 640×480 and measured against the Monte Carlo reference at 320×240 (2 × 1024 spp; the reference's
+//! own noise, estimated from its two halves, is printed beside the errors); `-- still` runs only
+//! that table.
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -61,6 +66,12 @@ fn main() {
         f0: 0.04,
         specular: Specular::Table(&table),
     };
+    // `cargo bench --bench render -- still`: the still-frame table only.
+    #[cfg(feature = "gui")]
+    if std::env::args().any(|a| a == "still") {
+        still_frames(&shading);
+        return;
+    }
     let mut gpu_rows = Vec::new();
     println!("| scene | vertices | size | shading | subdivision | points | frame (s) | fps |");
     println!("|---|---|---|---|---|---|---|---|");
@@ -220,5 +231,105 @@ fn main() {
     println!("|---|---|---|---|---|---|---|");
     for row in gpu_rows {
         println!("{row}");
+    }
+    #[cfg(feature = "gui")]
+    still_frames(&shading);
+}
+
+/// The app's still frame against its preview frame (see the module docs).
+#[cfg(feature = "gui")]
+fn still_frames(shading: &Shading) {
+    use glint::app::engine::preview_settings;
+    use glint::render::{ExactMaterial, render_reference};
+    let lobes = LobeSet::new(
+        LobeLayout::Isotropic { count: 24 },
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
+    )
+    .unwrap();
+    let mut c = vec![0.0; lobes.len()];
+    (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
+    let exact = ExactMaterial {
+        lobes: &lobes,
+        coefficients: [&c, &c, &c],
+        rho_d: shading.rho_d,
+        f0: shading.f0,
+    };
+    println!();
+    println!(
+        "| scene | CPU preview frame 640×480 (s) | still frame 640×480 (s) | CPU preview vs MC | wgpu preview's shading vs MC | still vs MC | MC noise |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for (mesh, env) in [
+        ("bunny", "hdr/small/studio_512.exr"),
+        ("dragon_100k", "hdr/courtyard_1k.exr"),
+    ] {
+        let imported =
+            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let env = glint::env::load(&common::assets().join(env)).unwrap();
+        let baker = Baker::new(&imported, &env, BakeSettings::default()).unwrap();
+        let bake = baker.bake_refined(None, &|_| {});
+        let scene = bake.scene(&imported).unwrap();
+        let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+        let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
+        let frame = |settings: PrtSettings, w: u32, h: u32| {
+            let camera = glint::scene::Camera {
+                aspect: w as f32 / h as f32,
+                ..scene.cameras[0].clone()
+            };
+            let prt = Prt::new(
+                &scene.mesh,
+                &bake.cuts,
+                &baker.tree,
+                tangents.as_deref(),
+                settings,
+            );
+            prt.render(&light, &camera, w, h, shading)
+        };
+        let t_preview = time(3, || frame(preview_settings(false), 640, 480));
+        let t_still = time(3, || frame(PrtSettings::default(), 640, 480));
+        let (w, h) = (320, 240);
+        let camera = glint::scene::Camera {
+            aspect: w as f32 / h as f32,
+            ..scene.cameras[0].clone()
+        };
+        let tracer = glint::bake::Tracer::new(&imported.mesh);
+        let offset = 1e-4 * imported.bounds.diagonal() as f64;
+        let (_, imported_tangents, _) = glint::bake::decisions::decide_frames(&imported.mesh);
+        let half = |seed| {
+            render_reference(
+                &imported.mesh,
+                imported_tangents.as_deref(),
+                &tracer,
+                offset,
+                &env,
+                0.0,
+                exact,
+                &camera,
+                w,
+                h,
+                1024,
+                seed,
+            )
+        };
+        let (a, b) = (half(1), half(2));
+        let mut mc = a.clone();
+        for (p, q) in mc.pixels.iter_mut().zip(&b.pixels) {
+            *p = std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
+        }
+        let mask = vec![true; (w * h) as usize];
+        let err = |img: &glint::render::Image| glint::accuracy::masked_rel_rmse(img, &mc, &mask).0;
+        let noise = 0.5 * glint::accuracy::masked_rel_rmse(&a, &b, &mask).0;
+        let (preview, still) = (
+            frame(preview_settings(false), w, h),
+            frame(PrtSettings::default(), w, h),
+        );
+        let gpu_preview = frame(preview_settings(true), w, h);
+        println!(
+            "| {mesh} | {t_preview:.3} | {t_still:.3} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            100.0 * err(&preview),
+            100.0 * err(&gpu_preview),
+            100.0 * err(&still),
+            100.0 * noise
+        );
     }
 }

@@ -1,7 +1,8 @@
 //! Render studies: the PRT frame against the Monte Carlo reference and the transfer render, one
 //! ingredient or setting at a time, printed as tables (developer tools behind the accuracy figures
 //! in docs/benchmarks.md; tests/it/render.rs holds the assertions). Run one by name with KEY=VALUE
-//! settings, e.g. `cargo run --release --example render_studies -- diagnose MESH=teapot`.
+//! settings, e.g. `cargo run --release --features studies --example render_studies -- diagnose
+//! MESH=teapot`.
 
 // Studies index parallel arrays (RGB channels, texels) in one loop, as the quadratures are written;
 // the bake settings are built field by field as each study varies them.
@@ -58,10 +59,10 @@ fn main() {
     }
 }
 
-/// Study: `cargo run --example render_studies -- diagnose MESH=teapot` prints PRT, transfer and
-/// Monte Carlo errors for a grid of PRT settings (ES: shading-triangle edges in pixels; a negative
-/// value shades per pixel) and writes images to `OUT` (default: the system temp folder's
-/// glint-studies).
+/// Study: `cargo run --release --features studies --example render_studies -- diagnose MESH=teapot`
+/// prints PRT, transfer and Monte Carlo errors for a grid of PRT settings (ES: shading-triangle
+/// edges in pixels; a negative value shades per pixel) and writes images to `OUT` (default: the
+/// system temp folder's glint-studies).
 fn diagnose() {
     let mesh = arg("MESH").unwrap_or("bunny".into());
     let (w, h) = (160, 120);
@@ -225,7 +226,7 @@ fn diagnose() {
 }
 
 /// Study: transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
-/// mesh (`cargo run --example render_studies -- subdivision_study`).
+/// mesh (`cargo run --release --features studies --example render_studies -- subdivision_study`).
 fn subdivision_study() {
     let spec =
         arg("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
@@ -312,8 +313,8 @@ fn subdivision_study() {
     }
 }
 
-/// Study: renders one frame REPS times for profiling, e.g.
-/// `cargo run --example render_studies -- profile_frame MESH=bunny PD=4 E=1 REPS=5`.
+/// Study: renders one frame REPS times for profiling, e.g. `cargo run --release --features studies
+/// --example render_studies -- profile_frame MESH=bunny PD=4 E=1 REPS=5`.
 fn profile_frame() {
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
@@ -489,10 +490,10 @@ fn refine_study() {
     }
 }
 
-/// Study: the grazing sharp-lobe case (bunny under samples/studio_1k, orbit 20,15,2.5,
-/// environment turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a
-/// time, and its worst pixels. `cargo run --example render_studies -- sharp_lobe_diagnose`
-/// (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
+/// Study: the grazing sharp-lobe case (bunny under samples/studio_1k, orbit 20,15,2.5, environment
+/// turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a time, and
+/// its worst pixels. `cargo run --release --features studies --example render_studies --
+/// sharp_lobe_diagnose` (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
 fn sharp_lobe_diagnose() {
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
     let mesh = var("MESH", "bunny");
@@ -791,8 +792,8 @@ fn sharp_lobe_diagnose() {
 /// MC. `RES` bakes at that direction-set resolution; `ALL` prints every pixel. Bunny, rotation 90°,
 /// K = 4, wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5
 /// %, Q with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette
-/// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --example render_studies -- sharp_lobe_quadrature`
-/// (MESH, ORBIT, ROT, SPP).
+/// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --release --features studies --example
+/// render_studies -- sharp_lobe_quadrature` (MESH, ORBIT, ROT, SPP).
 fn sharp_lobe_quadrature() {
     use glam::{DVec3, Vec3A};
     let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());

@@ -78,7 +78,7 @@ impl std::str::FromStr for PreviewChoice {
 /// render diagnose`, PDS=8,16: bunny 3.65 / 3.68 %, teapot 12.83 / 12.99 %; dragon_100k at 640×480:
 /// 0.30 s / 0.15 s, `cargo bench --bench render`) and clips nodes of up to 64 leaves astride a
 /// horizon whole ([`CPU_PREVIEW_HORIZON_LEAVES`]).
-fn preview_settings(gpu: bool) -> PrtSettings {
+pub fn preview_settings(gpu: bool) -> PrtSettings {
     if gpu {
         return PrtSettings {
             max_edge_px: 0.0,
@@ -450,6 +450,44 @@ impl Engine {
             self.frames_with_light += 1;
             image
         };
+        image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
+        Ok(image)
+    }
+
+    /// The still frame of a view that stopped moving: what `glint render` draws — the PRT frame
+    /// with its default settings (shaded per pixel, finer partitions at grazing views) and the
+    /// table the preview shows — where a preview frame shades the mesh's vertices (the wgpu
+    /// preview, or the CPU frame at [`CPU_PREVIEW_PARTITION_DEG`]) and interpolates. The worker
+    /// draws it once the view, the light and the material have rested for
+    /// [`super::worker::STILL_DELAY`].
+    pub fn render_still(
+        &mut self,
+        view: &ViewSpec,
+        size: [u32; 2],
+        rotation_deg: f64,
+    ) -> Result<Image, AppError> {
+        self.ensure_light(rotation_deg)?;
+        let camera = self.camera(view, size)?;
+        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
+            "the bake has not delivered any cuts yet",
+        ))?;
+        let (_, light) = self
+            .light
+            .as_ref()
+            .ok_or(AppError::NotReady("the light comes before a frame"))?;
+        let (rho_d, f0, table) = match &self.shown {
+            Some((rho_d, f0, table)) => (*rho_d, *f0, table.as_ref()),
+            None => ([0.5; 3], 0.04, None),
+        };
+        let specular = table.map_or(Specular::None, Specular::Table);
+        let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
+        let prt = Prt::new(mesh, cuts, &self.tree, tangents, PrtSettings::default());
+        let shading = Shading {
+            rho_d,
+            f0,
+            specular,
+        };
+        let mut image = prt.render(light, &camera, size[0], size[1], &shading);
         image.fill_background(&self.env, rotation_deg.to_radians(), &camera);
         Ok(image)
     }

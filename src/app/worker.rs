@@ -4,7 +4,9 @@
 //!
 //! Inputs: [`Command`]s from the UI. Outputs: [`Event`]s, each followed by the `wake` callback (the
 //! UI asks egui for a repaint there). Invariants: the UI thread never waits on this thread; of
-//! several queued frame requests only the newest is rendered; a fit of a view whose vertices are
+//! several queued frame requests only the newest is rendered; once the bake is complete and
+//! nothing has arrived for [`STILL_DELAY`] after a frame, that frame is drawn again as the still
+//! frame ([`Engine::render_still`]: what `glint render` draws); a fit of a view whose vertices are
 //! not baked yet waits for the whole bake (it would see black, unbaked vertices otherwise); every
 //! failure is an [`Event::Error`] line, never a panic of the UI.
 
@@ -261,6 +263,10 @@ fn run(
     })
 }
 
+/// How long the view, the light and the material must rest before the worker replaces the preview
+/// frame by the still frame ([`Engine::render_still`], what `glint render` draws).
+pub const STILL_DELAY: std::time::Duration = std::time::Duration::from_millis(300);
+
 /// The worker's loop over commands and bake results.
 #[allow(clippy::too_many_arguments)] // the worker's channels and shared state, each of its own kind
 fn serve(
@@ -280,29 +286,59 @@ fn serve(
     // After the first view's cuts, while idle: its transfer and the energy rows, so that the first
     // stroke's fit is only a solve.
     let mut prepare: Option<Document> = None;
+    // The last frame drawn, while it is a preview frame: once nothing arrives for STILL_DELAY (and
+    // the bake is complete) it is drawn again as the still frame.
+    let mut still: Option<(ViewSpec, [u32; 2], f64)> = None;
+    let mut pending: Option<Msg> = None;
     loop {
-        let msg = match prepare.take() {
-            Some(doc) => match rx.recv_timeout(std::time::Duration::from_millis(30)) {
+        if prepare.is_none()
+            && complete
+            && let Some((view, size, rotation_deg)) = still.take()
+        {
+            match rx.recv_timeout(STILL_DELAY) {
                 Ok(m) => {
-                    prepare = Some(doc);
-                    m
+                    still = Some((view, size, rotation_deg));
+                    pending = Some(m);
                 }
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                    match engine.prepare(&doc, first_view, first_size) {
-                        Ok(secs) => send(Event::FitPrepared {
-                            secs_since_start: start.elapsed().as_secs_f64(),
-                            prepare_secs: secs,
+                    match engine.render_still(&view, size, rotation_deg) {
+                        Ok(image) => send(Event::Frame {
+                            view,
+                            image: Arc::new(image),
                         }),
                         Err(e) => send(Event::Error(e.to_string())),
                     }
                     continue;
                 }
                 Err(_) => return Ok(()),
-            },
-            None => match rx.recv() {
-                Ok(m) => m,
-                Err(_) => return Ok(()),
-            },
+            }
+        }
+        let msg = if let Some(m) = pending.take() {
+            m
+        } else {
+            match prepare.take() {
+                Some(doc) => match rx.recv_timeout(std::time::Duration::from_millis(30)) {
+                    Ok(m) => {
+                        prepare = Some(doc);
+                        m
+                    }
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                        match engine.prepare(&doc, first_view, first_size) {
+                            Ok(secs) => send(Event::FitPrepared {
+                                secs_since_start: start.elapsed().as_secs_f64(),
+                                prepare_secs: secs,
+                            }),
+                            Err(e) => send(Event::Error(e.to_string())),
+                        }
+                        continue;
+                    }
+                    Err(_) => return Ok(()),
+                },
+                None => match rx.recv() {
+                    Ok(m) => m,
+                    Err(_) => return Ok(()),
+                },
+            }
         };
         let mut batch = vec![msg];
         batch.extend(rx.try_iter());
@@ -321,10 +357,13 @@ fn serve(
                 }) => {
                     if first_ready {
                         match engine.render(&view, size, rotation_deg) {
-                            Ok(image) => send(Event::Frame {
-                                view,
-                                image: Arc::new(image),
-                            }),
+                            Ok(image) => {
+                                still = Some((view.clone(), size, rotation_deg));
+                                send(Event::Frame {
+                                    view,
+                                    image: Arc::new(image),
+                                })
+                            }
                             Err(e) => send(Event::Error(e.to_string())),
                         }
                     }
@@ -338,7 +377,7 @@ fn serve(
                         send(Event::Error("the fit waits for the bake of this view's vertices (see the progress bar)".into()));
                         waiting_fit = Some(cmd);
                     } else {
-                        fit(engine, cmd, send);
+                        still = fit(engine, cmd, send).or(still);
                     }
                 }
                 Msg::Cmd(Command::SetEnv(path)) => match engine.set_env(&path) {
@@ -383,7 +422,7 @@ fn serve(
                     if waiting_fit.as_ref().is_some_and(ready)
                         && let Some(cmd) = waiting_fit.take()
                     {
-                        fit(engine, cmd, send);
+                        still = fit(engine, cmd, send).or(still);
                     }
                 }
                 Msg::Progress { done, total, phase } => {
@@ -395,7 +434,12 @@ fn serve(
     }
 }
 
-fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
+/// Fits and sends the result with its preview frame; returns the view drawn (for the still frame).
+fn fit(
+    engine: &mut Engine,
+    cmd: Command,
+    send: &dyn Fn(Event),
+) -> Option<(ViewSpec, [u32; 2], f64)> {
     let Command::Fit {
         id,
         doc,
@@ -403,8 +447,9 @@ fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
         size,
     } = cmd
     else {
-        return;
+        return None;
     };
+    let rotation_deg = doc.settings.env_rotation_deg;
     let result = engine.fit(&doc).and_then(|mut r| {
         let t = Instant::now();
         let image = engine.render(&view, size, doc.settings.env_rotation_deg)?;
@@ -412,13 +457,20 @@ fn fit(engine: &mut Engine, cmd: Command, send: &dyn Fn(Event)) {
         Ok((r, image))
     });
     match result {
-        Ok((r, image)) => send(Event::Fitted {
-            id,
-            result: Box::new(r),
-            image: Arc::new(image),
-            view,
-        }),
-        Err(e) => send(Event::Error(e.to_string())),
+        Ok((r, image)) => {
+            let drawn = (view.clone(), size, rotation_deg);
+            send(Event::Fitted {
+                id,
+                result: Box::new(r),
+                image: Arc::new(image),
+                view,
+            });
+            Some(drawn)
+        }
+        Err(e) => {
+            send(Event::Error(e.to_string()));
+            None
+        }
     }
 }
 

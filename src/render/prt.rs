@@ -148,10 +148,11 @@ struct NodeLight {
 /// `anisotropic` off the pre-filter takes the geometric mean √(ab) = v_ω/(4 wo·h) (what the wgpu
 /// preview and the transfer's ring filter use): right where the footprint is much wider than the
 /// lobe on both axes. At grazing views b ≫ σ² ≳ a, and a lobe (variance σ² = 1/(2λ) per axis)
-/// filtered by that ellipse peaks at σ²/√((σ² + a)(σ² + b)), well below the geometric mean's σ²/(σ²
-/// + √(ab)): with `anisotropic` the isotropic spread with that same peak, √((σ² + a)(σ² + b)) − σ²,
-/// which is √(ab) again where a, b ≫ σ² and a = b = v_ω/4 at normal incidence (the grazing case:
-/// the bunny's sharp lobe at grazing views, 28.8 → 17.9 % off Monte Carlo with one 8° partition).
+/// filtered by that ellipse peaks at σ²/√((σ² + a)(σ² + b)), well below the geometric mean's
+/// σ²/(σ² + √(ab)): with `anisotropic` the isotropic spread with that same peak,
+/// √((σ² + a)(σ² + b)) − σ², which is √(ab) again where a, b ≫ σ² and a = b = v_ω/4 at normal
+/// incidence (the grazing case: the bunny's sharp lobe at grazing views, 28.8 → 17.9 % off Monte
+/// Carlo with one 8° partition).
 #[inline]
 pub fn half_vector_spread(v_omega: f64, wo_h: f64, lambda: f64, anisotropic: bool) -> f64 {
     let c = wo_h.max(1e-3);

@@ -13,8 +13,8 @@
 //! wo·h). The mean of a lobe exp(2λ(h·ξ − 1)) ≈ exp(−λ α²) under a Gaussian jitter of per-axis
 //! variance v is the lobe with λ' = λ/(1 + 2λv), scaled by λ'/λ (variances add; the integral is
 //! kept). Level ℓ holds p with λ_ℓ = λ / 2^(ℓ/2) (half-octave steps); a lookup blends the two
-//! levels around ℓ = 2·log2(1 + 2λ v_h) linearly. Level 0 is p itself; the exported table is level
-//! 0. [`filtered_exact`] is the closed form the levels sample, for tests.
+//! levels around ℓ = 2·log2(1 + 2λ v_h) linearly. Level 0 is p itself; the exported table is
+//! level 0. [`filtered_exact`] is the closed form the levels sample, for tests.
 //!
 //! Isotropic lobe sets (rings: p depends on θ_h only) are evaluated exactly on a polar profile per
 //! level, p at q = √(1 − cos θ_h) on 8 R + 1 points, and the texels interpolate it; the profile is

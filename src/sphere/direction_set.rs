@@ -120,8 +120,8 @@ impl DirectionSet {
     }
 
     /// A k×k grid of sample directions inside texel `index` with weights proportional to the solid
-    /// angle each stands for (the cube-face Jacobian 1/(1 + s² + t²)^(3/2)), normalised to sum to
-    /// 1. Used to integrate an environment over a texel.
+    /// angle each stands for (the cube-face Jacobian 1/(1 + s² + t²)^(3/2)), normalised to sum
+    /// to 1. Used to integrate an environment over a texel.
     pub fn texel_samples(&self, index: usize, k: usize) -> impl Iterator<Item = (DVec3, f64)> + '_ {
         let n = self.resolution;
         let k = k.max(1);

@@ -50,8 +50,8 @@ impl TreeNode {
     /// The node's bounding cone against the horizon of unit `n`: (the largest cosine to n inside
     /// the cone, whether every direction of the cone is above the horizon). β = angle(mean
     /// direction, n), α = the cone's half-angle, all in cosines and sines (no acos): the largest
-    /// cosine is cos(β − α) when β ≥ α (else the cone holds n), and the cone is wholly above when β
-    /// + α < π/2.
+    /// cosine is cos(β − α) when β ≥ α (else the cone holds n), and the cone is wholly above
+    /// when β + α < π/2.
     #[inline]
     pub fn horizon(&self, n: DVec3) -> (f64, bool) {
         let cos_b = self.mean_direction.dot(n).clamp(-1.0, 1.0);

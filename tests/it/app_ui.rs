@@ -409,3 +409,99 @@ fn side_panel_scrolls_to_the_export_row_at_the_default_window_size() {
         "the wheel did not scroll the panel: {before:?} -> {after:?}"
     );
 }
+
+/// The still frame: once the view rests, the app's engine draws what `glint render` draws (the PRT
+/// frame at its default settings, shaded per pixel) in place of the vertex-shaded preview. On the
+/// bunny under the studio map with the sample strokes fitted, 160×120: the still frame equals a PRT
+/// frame rendered directly with the default settings (light sums from scratch rather than from the
+/// engine's kept source: 1e-6), and differs from the preview (the preview's own error, which the
+/// still frame removes; `cargo bench --bench render` measures both against Monte Carlo).
+#[test]
+fn the_still_frame_is_the_render_commands_frame() {
+    use glint::render::{Prt, PrtSettings, Shading, Specular};
+    if !gpu_or_skip() {
+        return;
+    }
+    let samples = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let (scene_path, env_path) = (samples.join("bunny.glb"), samples.join("studio_1k.exr"));
+    let scene = glint::scene::import(&scene_path).unwrap();
+    let env = glint::env::load(&env_path).unwrap();
+    let baker = glint::bake::Baker::new(&scene, &env, Default::default()).unwrap();
+    let bake = baker.bake_refined(None, &|_| {});
+    let (set, tree) = (baker.set.clone(), baker.tree.clone());
+    drop(baker);
+    let baked = bake.scene(&scene).unwrap();
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(&baked.mesh);
+    let refined =
+        (!bake.refinement.is_empty()).then(|| (Arc::new(baked.mesh.clone()), tangents.clone()));
+    let (_, scene_tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+    let mut engine = glint::app::engine::Engine::new(
+        Arc::new(scene),
+        env.clone(),
+        env_path,
+        scene_tangents,
+        bake.decisions.anisotropic,
+        bake.decisions.resolution,
+        glint::app::PreviewChoice::Cpu,
+    )
+    .unwrap();
+    engine.set_bake(bake.cuts.clone(), refined).unwrap();
+    let doc = glint::app::state::Document {
+        views: glint::fit::strokes::parse(
+            &std::fs::read_to_string(samples.join("strokes/bunny-highlight.json")).unwrap(),
+        )
+        .unwrap(),
+        ..Default::default()
+    };
+    let fitted = engine.fit(&doc).unwrap();
+    let view = doc.views[0].view.clone();
+    let size = [160, 120];
+    let preview = engine.render(&view, size, 0.0).unwrap();
+    let still = engine.render_still(&view, size, 0.0).unwrap();
+    // The same frame from the renderer directly, as `glint render` draws it.
+    let m = &fitted.material;
+    let lobes = m.lobes().unwrap();
+    let c = &m.coefficients;
+    let table = glint::render::PhPyramid::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        glint::render::table::default_resolution(lobes.lambda()),
+    );
+    let light = glint::light::LightSums::new(&env, &set, &tree, 0.0);
+    let prt = Prt::new(
+        &baked.mesh,
+        &bake.cuts,
+        &tree,
+        tangents.as_deref(),
+        PrtSettings::default(),
+    );
+    let camera = engine.camera(&view, size).unwrap();
+    let mut direct = prt.render(
+        &light,
+        &camera,
+        size[0],
+        size[1],
+        &Shading {
+            rho_d: m.rho_d,
+            f0: m.f0,
+            specular: Specular::Table(&table),
+        },
+    );
+    direct.fill_background(&env, 0.0, &camera);
+    let mask = vec![true; (size[0] * size[1]) as usize];
+    let (still_vs_direct, pixels) = glint::accuracy::masked_rel_rmse(&still, &direct, &mask);
+    let (preview_vs_still, _) = glint::accuracy::masked_rel_rmse(&preview, &still, &mask);
+    println!(
+        "still frame vs the render command's frame {still_vs_direct:.2e} over {pixels} pixels; preview vs still {:.2} %",
+        100.0 * preview_vs_still
+    );
+    assert!(pixels > 1000, "{pixels} object pixels");
+    assert!(
+        still_vs_direct < 1e-4,
+        "the still frame is not glint render's frame: {still_vs_direct}"
+    );
+    assert!(
+        preview_vs_still > 5e-3,
+        "the still frame changed nothing ({preview_vs_still})"
+    );
+}

@@ -1,5 +1,5 @@
-//! Every entry of the energy table g (the paper's J = 147 hemicube lobes at σ = π/40, N_l = 192 + 1
-//! + 64) against brute-force quadrature directly over wi (no half-vector change of variables): a
+//! Every entry of the energy table g (the paper's J = 147 hemicube lobes at σ = π/40, N_l = 192 +
+//! 1 + 64) against brute-force quadrature directly over wi (no half-vector change of variables): a
 //! midpoint rule on a fine (θi, φi) grid of the hemisphere, all lobes per grid point. Also the
 //! isotropic (ring) lobes, whose brute force evaluates the ring lobe through the Bessel closed
 //! form, and the hard cases λ = 1, 5000. Rows near the horizon (glint's 64 extra ones, wo.z = 0.03
