@@ -343,17 +343,9 @@ impl Engine {
         camera_for(&self.scene, view, size).map_err(|e| AppError::Stage(e.to_string()))
     }
 
-    /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and
-    /// the view's transfer. Returns the seconds it took.
-    pub fn prepare(
-        &mut self,
-        doc: &Document,
-        view: &ViewSpec,
-        size: [u32; 2],
-    ) -> Result<f64, AppError> {
-        let start = Instant::now();
-        self.ensure_light(doc.settings.env_rotation_deg)?;
-        let settings = doc.settings.fit_settings(self.anisotropic);
+    /// The fitting context and what a fit reads (the cuts' mesh, the cuts, the light at the current
+    /// rotation), borrowed together.
+    fn session_and_inputs(&mut self) -> Result<(&mut FitSession, FitInputs<'_>), AppError> {
         let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
             "the bake has not delivered any cuts yet",
         ))?;
@@ -371,7 +363,22 @@ impl Engine {
             tree: &self.tree,
             light,
         };
-        self.session
+        Ok((&mut self.session, inputs))
+    }
+
+    /// Everything a first stroke in `view` needs besides the solve: light, lobes, energy rows and
+    /// the view's transfer. Returns the seconds it took.
+    pub fn prepare(
+        &mut self,
+        doc: &Document,
+        view: &ViewSpec,
+        size: [u32; 2],
+    ) -> Result<f64, AppError> {
+        let start = Instant::now();
+        self.ensure_light(doc.settings.env_rotation_deg)?;
+        let settings = doc.settings.fit_settings(self.anisotropic);
+        let (session, inputs) = self.session_and_inputs()?;
+        session
             .prepare(&inputs, view, size, &settings)
             .map_err(|e| AppError::Stage(e.to_string()))?;
         Ok(start.elapsed().as_secs_f64())
@@ -498,25 +505,8 @@ impl Engine {
         s.validate().map_err(AppError::Settings)?;
         self.ensure_light(s.env_rotation_deg)?;
         let settings = s.fit_settings(self.anisotropic);
-        let cuts = self.cuts.as_ref().ok_or(AppError::NotReady(
-            "the bake has not delivered any cuts yet",
-        ))?;
-        let (_, light) = self
-            .light
-            .as_ref()
-            .ok_or(AppError::NotReady("the light comes before a fit"))?;
-        let (mesh, tangents) = baked_mesh(&self.scene, &self.tangents, &self.refined);
-        let inputs = FitInputs {
-            scene: &self.scene,
-            mesh,
-            tangents,
-            anisotropic: self.anisotropic,
-            cuts,
-            tree: &self.tree,
-            light,
-        };
-        let outcome = self
-            .session
+        let (session, inputs) = self.session_and_inputs()?;
+        let outcome = session
             .fit(&inputs, &doc.fit_views(), &settings)
             .map_err(|e| AppError::Stage(e.to_string()))?;
         let material = outcome.material;

@@ -55,7 +55,26 @@ impl LoadedBake {
                 });
             }
         }
-        let mut scene = crate::scene::import(&header.scene_file)?;
+        let scene = crate::scene::import(&header.scene_file)?;
+        let env = crate::env::load(&header.env_file)?;
+        Self::assemble(path, header, cuts, refinement, scene, env)
+    }
+
+    /// Reads `path` with the scene and environment it was made from already in memory (as
+    /// [`file::bake_or_reuse`] leaves them, having checked their hashes): nothing is imported again.
+    pub fn with_inputs(path: &Path, scene: Scene, env: EnvMap) -> Result<Self, LoadBakeError> {
+        let (header, cuts, refinement) = file::read(path)?;
+        Self::assemble(path, header, cuts, refinement, scene, env)
+    }
+
+    fn assemble(
+        path: &Path,
+        header: BakeHeader,
+        cuts: Cuts,
+        refinement: super::Refinement,
+        mut scene: Scene,
+        env: EnvMap,
+    ) -> Result<Self, LoadBakeError> {
         let mismatch = |message: String| LoadBakeError::Mismatch {
             path: path.to_path_buf(),
             message,
@@ -71,7 +90,6 @@ impl LoadedBake {
                 scene.mesh.positions.len()
             )));
         }
-        let env = crate::env::load(&header.env_file)?;
         let (_, tangents, _) = super::decisions::decide_frames(&scene.mesh);
         Ok(Self {
             header,

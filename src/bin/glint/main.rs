@@ -109,9 +109,10 @@ fn bake(args: &BakeArgs) -> Result<()> {
         eprintln!("glint bake: {reason}");
     }
     // What a fit in this view costs now (no ray tracing: only sums and transfers).
-    let loaded = LoadedBake::open(&out)?;
+    let imported_vertices = scene.mesh.positions.len();
+    let loaded = LoadedBake::with_inputs(&out, scene, env)?;
     let cost = glint::fit::cost::view_cost(&loaded, &camera, fit_size)?;
-    let refined = loaded.scene.mesh.positions.len() != scene.mesh.positions.len();
+    let refined = loaded.scene.mesh.positions.len() != imported_vertices;
     let path = out.join("bake.glint");
     let (reused, header) = (outcome.reused, &outcome.header);
     let report = glint::fit::cost::BakeReport {
