@@ -118,6 +118,7 @@ impl FitSession {
             });
             self.forget_transfers();
         }
+        // Cannot fire: the branch above leaves `lobes` set whenever it was empty or stale.
         Ok(self.lobes.as_mut().expect("set just above"))
     }
 
