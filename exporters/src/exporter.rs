@@ -9,10 +9,12 @@
 use crate::atomic::write_atomic;
 use crate::error::ExportError;
 use crate::exr::ExrExporter;
+use crate::fallback_summary::FallbackExporter;
 use crate::gltf::GltfExporter;
 use crate::material::{MaterialDesc, SceneMesh};
 use crate::merl::MerlExporter;
 use crate::mitsuba::MitsubaExporter;
+use crate::mtlx::MtlxExporter;
 use crate::usd::UsdExporter;
 use std::path::{Path, PathBuf};
 
@@ -25,7 +27,8 @@ pub struct OutputFile {
 
 /// A file format glint can write.
 pub trait Exporter: Send + Sync {
-    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `merl`, `mitsuba`.
+    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `mtlx`, `fallback`, `merl`,
+    /// `mitsuba`.
     fn name(&self) -> &'static str;
     /// Extensions of the files it writes (without the dot); the first is the main file's.
     fn extensions(&self) -> &'static [&'static str];
@@ -75,15 +78,17 @@ fn write_all(files: &[OutputFile]) -> Result<Vec<PathBuf>, ExportError> {
     Ok(written)
 }
 
-static REGISTRY: [&dyn Exporter; 5] = [
+static REGISTRY: [&dyn Exporter; 7] = [
     &ExrExporter,
     &GltfExporter,
     &UsdExporter,
+    &MtlxExporter,
+    &FallbackExporter,
     &MerlExporter,
     &MitsubaExporter,
 ];
 
-/// Every exporter, in a fixed order: exr, gltf, usd, merl, mitsuba.
+/// Every exporter, in a fixed order: exr, gltf, usd, mtlx, fallback, merl, mitsuba.
 pub fn registry() -> &'static [&'static dyn Exporter] {
     &REGISTRY
 }

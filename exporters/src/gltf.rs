@@ -3,8 +3,9 @@
 //! Inputs: a validated [`MaterialDesc`] and an optional [`SceneMesh`]. Outputs: the GLB bytes
 //! ([`encode_glb`]) and the exporter ([`GltfExporter`]), which also writes the `<name>_ph.exr`
 //! table the GLB points at. The material is `pbrMetallicRoughness` from the fallback
-//! (baseColorFactor, metallicFactor, roughnessFactor), plus `KHR_materials_anisotropy` (in
-//! `extensionsUsed`, not required) only when the fallback is anisotropic; `material.extras.glint`
+//! (baseColorFactor, metallicFactor, roughnessFactor), plus each of `KHR_materials_specular`,
+//! `_clearcoat`, `_sheen` and `_anisotropy` the fallback uses (in `extensionsUsed`, not required:
+//! a viewer without them still shows the base); `material.extras.glint`
 //! carries the whole lobe table (f64, shortest round-trip), the provenance, and the table's
 //! relative URI and parameterisation.
 //!
@@ -94,6 +95,9 @@ fn material_json(desc: &MaterialDesc) -> (Value, bool) {
         "channels": "RGB float32, linear, p(h) in 1/sr",
     });
     glint["fallback_relative_error"] = json!(fb.relative_error);
+    glint["fallback_uniform_relative_error"] = json!(fb.uniform_relative_error);
+    glint["fallback_one_lobe_relative_error"] = json!(fb.one_lobe_relative_error);
+    glint["fallback_weighting"] = json!(fb.weighting.name());
     let mut m = json!({
         "name": desc.name,
         "pbrMetallicRoughness": {
@@ -103,11 +107,41 @@ fn material_json(desc: &MaterialDesc) -> (Value, bool) {
         },
         "extras": { "glint": glint },
     });
-    let anisotropic = fb.anisotropy.is_some();
-    if let Some((strength, rotation)) = fb.anisotropy {
-        m["extensions"] = json!({ "KHR_materials_anisotropy": { "anisotropyStrength": strength, "anisotropyRotation": rotation } });
+    let extensions = extensions_json(fb);
+    if !extensions.is_empty() {
+        m["extensions"] = Value::Object(extensions);
     }
-    (m, anisotropic)
+    (m, fb.anisotropy.is_some())
+}
+
+/// The `KHR_materials_*` objects of a fallback, by extension name (empty when it has none).
+pub(crate) fn extensions_json(fb: &crate::material::PbrFallback) -> serde_json::Map<String, Value> {
+    let mut extensions = serde_json::Map::new();
+    if let Some((strength, rotation)) = fb.anisotropy {
+        extensions.insert(
+            "KHR_materials_anisotropy".into(),
+            json!({ "anisotropyStrength": strength, "anisotropyRotation": rotation }),
+        );
+    }
+    if let Some(c) = fb.clearcoat {
+        extensions.insert(
+            "KHR_materials_clearcoat".into(),
+            json!({ "clearcoatFactor": c.factor, "clearcoatRoughnessFactor": c.roughness }),
+        );
+    }
+    if let Some(s) = fb.sheen {
+        extensions.insert(
+            "KHR_materials_sheen".into(),
+            json!({ "sheenColorFactor": s.color, "sheenRoughnessFactor": s.roughness }),
+        );
+    }
+    if let Some(s) = fb.specular {
+        extensions.insert(
+            "KHR_materials_specular".into(),
+            json!({ "specularFactor": s.factor, "specularColorFactor": s.color }),
+        );
+    }
+    extensions
 }
 
 /// The GLB bytes for a validated description and mesh (the preview sphere when `scene` is `None`).
@@ -155,7 +189,7 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
     while !bin.bytes.len().is_multiple_of(4) {
         bin.bytes.push(0);
     }
-    let (material, anisotropic) = material_json(desc);
+    let (material, _) = material_json(desc);
     let mesh_name = if scene.is_some() {
         desc.name.clone()
     } else {
@@ -172,8 +206,9 @@ pub fn encode_glb(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Vec<
         "bufferViews": bin.views,
         "buffers": [{ "byteLength": bin.bytes.len() }],
     });
-    if anisotropic {
-        root["extensionsUsed"] = json!(["KHR_materials_anisotropy"]);
+    let used = desc.fallback.extensions();
+    if !used.is_empty() {
+        root["extensionsUsed"] = json!(used);
     }
     if let Some(camera) = scene.and_then(|s| s.camera.as_ref()) {
         let (r, u, f, e) = (camera.right(), camera.up, camera.forward, camera.eye);

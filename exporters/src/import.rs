@@ -31,11 +31,7 @@ fn bad(path: &Path, reason: impl Into<String>) -> ExportError {
 
 /// The lobe table of a `.glb`, `.gltf` or `.usda` glint wrote (by extension).
 pub fn read_lobe_table(path: &Path) -> Result<Value, ExportError> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .unwrap_or_default();
+    let ext = extension(path);
     let bytes = read_capped(path)?;
     match ext.as_str() {
         "glb" | "gltf" => from_gltf(path, &bytes),
@@ -45,6 +41,14 @@ pub fn read_lobe_table(path: &Path) -> Result<Value, ExportError> {
             "not a material file glint reads back (.json, .glb, .gltf or .usda)",
         )),
     }
+}
+
+/// The file's extension, lower-case ("" when it has none).
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default()
 }
 
 fn read_capped(path: &Path) -> Result<Vec<u8>, ExportError> {
@@ -89,7 +93,8 @@ fn check_relative(path: &Path, uri: &str) -> Result<(), ExportError> {
     Ok(())
 }
 
-fn from_gltf(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
+/// The JSON of a `.glb` (its first chunk) or a `.gltf`.
+fn gltf_root(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
     let json_bytes: &[u8] = if bytes.starts_with(b"glTF") {
         let word = |at: usize| {
             bytes
@@ -125,8 +130,12 @@ fn from_gltf(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
     } else {
         bytes
     };
-    let root: Value = serde_json::from_slice(json_bytes)
-        .map_err(|e| bad(path, format!("the glTF JSON is invalid: {e}")))?;
+    serde_json::from_slice(json_bytes)
+        .map_err(|e| bad(path, format!("the glTF JSON is invalid: {e}")))
+}
+
+fn from_gltf(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
+    let root = gltf_root(path, bytes)?;
     let materials = root
         .get("materials")
         .and_then(Value::as_array)
@@ -148,6 +157,76 @@ fn from_gltf(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
     }
     let table = lobe_fields(path, glint)?;
     Ok(table)
+}
+
+/// The fallback a glint export carries, as JSON: for a `.glb`/`.gltf`, the glint material's
+/// object (`pbrMetallicRoughness`, `extensions`); for a `.usda`, `{"UsdPreviewSurface": {input:
+/// value}}` with the numbers of the material's preview shader (`info:id = "UsdPreviewSurface"`).
+/// The same reading rules as [`read_lobe_table`].
+pub fn read_fallback(path: &Path) -> Result<Value, ExportError> {
+    let ext = extension(path);
+    let bytes = read_capped(path)?;
+    match ext.as_str() {
+        "glb" | "gltf" => {
+            let root = gltf_root(path, &bytes)?;
+            root.get("materials")
+                .and_then(Value::as_array)
+                .and_then(|ms| {
+                    ms.iter()
+                        .find(|m| m.get("extras").and_then(|e| e.get("glint")).is_some())
+                })
+                .cloned()
+                .ok_or_else(|| {
+                    bad(
+                        path,
+                        "no material of this glTF carries extras.glint (not a glint export)",
+                    )
+                })
+        }
+        "usda" | "usd" => preview_surface(path, &bytes),
+        _ => Err(bad(
+            path,
+            "not an exported fallback glint reads (.glb, .gltf or .usda)",
+        )),
+    }
+}
+
+fn preview_surface(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
+    use openusd::sdf;
+    let data = parse_usda(path, bytes)?;
+    let mut shader: Option<String> = None;
+    for (p, spec) in data.iter() {
+        if spec.ty == sdf::SpecType::Attribute
+            && let Some(prim) = p.as_str().strip_suffix(".info:id")
+            && matches!(spec.get("default"), Some(sdf::Value::Token(t)) if t.as_str() == "UsdPreviewSurface")
+        {
+            if shader.is_some() {
+                return Err(bad(path, "more than one UsdPreviewSurface in the stage"));
+            }
+            shader = Some(prim.to_string());
+        }
+    }
+    let shader = shader.ok_or_else(|| bad(path, "no UsdPreviewSurface shader in the stage"))?;
+    let mut inputs = serde_json::Map::new();
+    for (p, spec) in data.iter() {
+        let Some(name) = p
+            .as_str()
+            .strip_prefix(shader.as_str())
+            .and_then(|rest| rest.strip_prefix(".inputs:"))
+        else {
+            continue;
+        };
+        let value = match spec.get("default") {
+            Some(sdf::Value::Float(x)) => json!(*x as f64),
+            Some(sdf::Value::Double(x)) => json!(*x),
+            Some(sdf::Value::Int(x)) => json!(*x),
+            Some(sdf::Value::Vec3f(c)) => json!([c.x as f64, c.y as f64, c.z as f64]),
+            Some(sdf::Value::Vec3d(c)) => json!([c.x, c.y, c.z]),
+            _ => continue,
+        };
+        inputs.insert(name.to_string(), value);
+    }
+    Ok(json!({ "UsdPreviewSurface": inputs }))
 }
 
 /// The lobe-table fields of a JSON object, checked for presence, type and size.
@@ -238,8 +317,8 @@ fn lobe_fields(path: &Path, g: &Value) -> Result<Value, ExportError> {
     Ok(Value::Object(out))
 }
 
-fn from_usda(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
-    use openusd::sdf;
+/// One USD text layer, parsed alone.
+fn parse_usda(path: &Path, bytes: &[u8]) -> Result<openusd::sdf::Data, ExportError> {
     let text = std::str::from_utf8(bytes).map_err(|_| {
         bad(
             path,
@@ -255,7 +334,7 @@ fn from_usda(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
     // The parser is a third party's: a panic in it on hostile text is reported as a refusal.
     let parsed = std::panic::catch_unwind(|| openusd::usda::parse(text))
         .map_err(|_| bad(path, "USD parse error: the parser failed on this text"))?;
-    let data = parsed.map_err(|e| {
+    parsed.map_err(|e| {
         bad(
             path,
             format!(
@@ -263,7 +342,12 @@ fn from_usda(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
                 format!("{e:#}").lines().next().unwrap_or("")
             ),
         )
-    })?;
+    })
+}
+
+fn from_usda(path: &Path, bytes: &[u8]) -> Result<Value, ExportError> {
+    use openusd::sdf;
+    let data = parse_usda(path, bytes)?;
     let mut shader: Option<String> = None;
     for (p, spec) in data.iter() {
         if spec.ty == sdf::SpecType::Attribute

@@ -45,11 +45,13 @@ pub mod brdf;
 pub mod error;
 pub mod exporter;
 pub mod exr;
+pub mod fallback_summary;
 pub mod gltf;
 pub mod import;
 pub mod material;
 pub mod merl;
 pub mod mitsuba;
+pub mod mtlx;
 pub mod npy;
 pub mod sphere;
 pub mod table;
@@ -61,10 +63,15 @@ pub use brdf::{eval_from_table, eval_lobes};
 pub use error::ExportError;
 pub use exporter::{Exporter, OutputFile, export_all, find_exporter, registry};
 pub use exr::{AttrValue, ExrExporter, read_ph_exr, read_ph_exr_attributes};
+pub use fallback_summary::{FallbackExporter, fallback_summary};
 pub use gltf::GltfExporter;
-pub use material::{MODEL, MaterialDesc, PbrFallback, SceneMesh};
+pub use material::{
+    ClearcoatLayer, MODEL, MaterialDesc, PbrFallback, PreviewSurfaceFallback, SceneMesh,
+    SheenLayer, SpecularLayer, Weighting,
+};
 pub use merl::{MerlExporter, MerlTable, merl_lookup, read_merl};
 pub use mitsuba::MitsubaExporter;
+pub use mtlx::MtlxExporter;
 pub use table::{
     DEFAULT_TABLE_RESOLUTION, PARAMETERISATION, PhTable, hemi_oct_decode, hemi_oct_encode,
 };

@@ -65,14 +65,65 @@ pub struct MaterialDesc {
     pub provenance: BTreeMap<String, String>,
     /// The tabulated p(h) (hemi-octahedral; see the crate docs).
     pub table: PhTable,
-    /// The metallic–roughness approximation glTF and USD viewers show.
+    /// The glTF approximation viewers show (pbrMetallicRoughness and extensions); the MaterialX
+    /// document's OpenPBR surface is mapped from it.
     pub fallback: PbrFallback,
+    /// The UsdPreviewSurface approximation USD viewers show.
+    pub preview_surface: PreviewSurfaceFallback,
     /// The MERL table; `None` makes the MERL exporter refuse.
     pub merl: Option<MerlTable>,
 }
 
-/// A glTF/UsdPreviewSurface approximation of the material.
-#[derive(Debug, Clone, PartialEq)]
+/// `KHR_materials_specular` of the glTF fallback: the dielectric's F0 = min(0.04 · color, 1) ·
+/// factor and F90 = factor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpecularLayer {
+    /// `specularFactor`, in [0, 1].
+    pub factor: f64,
+    /// `specularColorFactor`, linear RGB in [0, 25] (25 · 0.04 = F0 of 1).
+    pub color: [f64; 3],
+}
+
+/// `KHR_materials_clearcoat` of the glTF fallback (the coat of the USD and MaterialX ones).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClearcoatLayer {
+    /// `clearcoatFactor`, in [0, 1].
+    pub factor: f64,
+    /// `clearcoatRoughnessFactor` (perceptual), in [0, 1].
+    pub roughness: f64,
+}
+
+/// `KHR_materials_sheen` of the glTF fallback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SheenLayer {
+    /// `sheenColorFactor`, linear RGB in [0, 1].
+    pub color: [f64; 3],
+    /// `sheenRoughnessFactor`, in [0, 1].
+    pub roughness: f64,
+}
+
+/// How a fallback's error is weighted over direction pairs (see glint docs/fallback.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Weighting {
+    /// Cosine-weighted pairs over the whole hemisphere (no scene known).
+    #[default]
+    Uniform,
+    /// The exported scene's view directions over the object, light weighted by the environment.
+    Scene,
+}
+
+impl Weighting {
+    pub fn name(self) -> &'static str {
+        match self {
+            Weighting::Uniform => "uniform",
+            Weighting::Scene => "scene",
+        }
+    }
+}
+
+/// The glTF approximation of the material: pbrMetallicRoughness with the extensions that lower
+/// the error (`KHR_materials_specular`, `_clearcoat`, `_sheen`, `_anisotropy`).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct PbrFallback {
     /// Linear RGB in [0, 1].
     pub base_color: [f64; 3],
@@ -83,27 +134,130 @@ pub struct PbrFallback {
     /// `(strength in [0, 1], rotation in radians)` for `KHR_materials_anisotropy`; `None`:
     /// isotropic.
     pub anisotropy: Option<(f64, f64)>,
-    /// How far the fallback is from the fitted BRDF (reported in metadata, not used).
+    pub specular: Option<SpecularLayer>,
+    pub clearcoat: Option<ClearcoatLayer>,
+    pub sheen: Option<SheenLayer>,
+    /// How far the fallback is from the fitted BRDF, relative RMS under `weighting` (reported in
+    /// metadata, not used).
     pub relative_error: f64,
+    /// The same under uniform weighting.
+    pub uniform_relative_error: f64,
+    /// What the one-lobe fallback (pbrMetallicRoughness, with anisotropy where it helps) scores
+    /// under `weighting`: the first candidate, which the layered fit never does worse than.
+    pub one_lobe_relative_error: f64,
+    pub weighting: Weighting,
 }
 
 impl PbrFallback {
+    /// The glTF extensions this fallback uses, sorted.
+    pub fn extensions(&self) -> Vec<&'static str> {
+        let mut e = Vec::new();
+        if self.anisotropy.is_some() {
+            e.push("KHR_materials_anisotropy");
+        }
+        if self.clearcoat.is_some() {
+            e.push("KHR_materials_clearcoat");
+        }
+        if self.sheen.is_some() {
+            e.push("KHR_materials_sheen");
+        }
+        if self.specular.is_some() {
+            e.push("KHR_materials_specular");
+        }
+        e
+    }
+
     /// One line for people: the parameters and the error against the fitted BRDF (`isotropic`: the
     /// material is; an anisotropic material that got an isotropic fallback says why).
     pub fn summary(&self, isotropic: bool) -> String {
         let [r, g, b] = self.base_color;
-        let anisotropy = match self.anisotropy {
-            Some((strength, rotation)) => format!(
-                "; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"
-            ),
-            None if isotropic => String::new(),
-            None => " (isotropic fallback: an anisotropic one fitted no better)".to_string(),
-        };
+        let mut layers = String::new();
+        if let Some(s) = self.specular {
+            let [sr, sg, sb] = s.color;
+            layers += &format!(
+                "; KHR_materials_specular factor {:.3}, colour [{sr:.3}, {sg:.3}, {sb:.3}]",
+                s.factor
+            );
+        }
+        if let Some(c) = self.clearcoat {
+            layers += &format!(
+                "; KHR_materials_clearcoat {:.3}, roughness {:.3}",
+                c.factor, c.roughness
+            );
+        }
+        if let Some(s) = self.sheen {
+            let [sr, sg, sb] = s.color;
+            layers += &format!(
+                "; KHR_materials_sheen colour [{sr:.3}, {sg:.3}, {sb:.3}], roughness {:.3}",
+                s.roughness
+            );
+        }
+        match self.anisotropy {
+            Some((strength, rotation)) => {
+                layers += &format!(
+                    "; KHR_materials_anisotropy strength {strength:.3}, rotation {rotation:.3} rad"
+                )
+            }
+            None if isotropic => {}
+            None => layers += " (isotropic: an anisotropic fallback fitted no better)",
+        }
         format!(
-            "glTF/USD fallback (pbrMetallicRoughness): base colour [{r:.3}, {g:.3}, {b:.3}], metallic {:.2}, roughness {:.3}; relative RMS error against the fitted BRDF {:.1} %{anisotropy}",
+            "glTF fallback: base colour [{r:.3}, {g:.3}, {b:.3}], metallic {:.2}, roughness {:.3}{layers}; relative RMS error against the fitted BRDF {:.1} % ({} weighting; uniform {:.1} %; one-lobe fallback {:.1} %)",
             self.metallic,
             self.roughness,
-            self.relative_error * 100.0
+            self.relative_error * 100.0,
+            self.weighting.name(),
+            self.uniform_relative_error * 100.0,
+            self.one_lobe_relative_error * 100.0,
+        )
+    }
+}
+
+/// The UsdPreviewSurface approximation of the material, evaluated as Storm's reference
+/// implementation does (see glint docs/fallback.md).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PreviewSurfaceFallback {
+    /// `diffuseColor`, linear RGB in [0, 1].
+    pub diffuse_color: [f64; 3],
+    /// `useSpecularWorkflow`: `specularColor` is F0; else `metallic` mixes.
+    pub use_specular_workflow: bool,
+    /// `specularColor`, linear RGB in [0, 1] (used in the specular workflow).
+    pub specular_color: [f64; 3],
+    /// `metallic`, in [0, 1] (0 in the specular workflow).
+    pub metallic: f64,
+    /// `roughness`, in [0, 1].
+    pub roughness: f64,
+    /// `clearcoat` and `clearcoatRoughness`, in [0, 1].
+    pub clearcoat: f64,
+    pub clearcoat_roughness: f64,
+    /// Relative RMS error against the fitted BRDF under the glTF fallback's weighting.
+    pub relative_error: f64,
+    pub uniform_relative_error: f64,
+}
+
+impl PreviewSurfaceFallback {
+    /// One line for people.
+    pub fn summary(&self) -> String {
+        let [r, g, b] = self.diffuse_color;
+        let workflow = if self.use_specular_workflow {
+            let [sr, sg, sb] = self.specular_color;
+            format!("specular workflow, specularColor [{sr:.3}, {sg:.3}, {sb:.3}]")
+        } else {
+            format!("metallic {:.2}", self.metallic)
+        };
+        let coat = if self.clearcoat > 0.0 {
+            format!(
+                ", clearcoat {:.3}, clearcoatRoughness {:.3}",
+                self.clearcoat, self.clearcoat_roughness
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "USD fallback (UsdPreviewSurface): diffuseColor [{r:.3}, {g:.3}, {b:.3}], {workflow}, roughness {:.3}{coat}; relative RMS error {:.1} % (uniform {:.1} %)",
+            self.roughness,
+            self.relative_error * 100.0,
+            self.uniform_relative_error * 100.0
         )
     }
 }
@@ -186,21 +340,49 @@ impl MaterialDesc {
             return Err(self.invalid("rho_d/f0", "has a non-finite value"));
         }
         let fb = &self.fallback;
-        let mut numbers = vec![fb.metallic, fb.roughness, fb.relative_error];
+        let mut numbers = vec![
+            fb.metallic,
+            fb.roughness,
+            fb.relative_error,
+            fb.uniform_relative_error,
+            fb.one_lobe_relative_error,
+        ];
         numbers.extend_from_slice(&fb.base_color);
         if let Some((s, r)) = fb.anisotropy {
             numbers.extend_from_slice(&[s, r]);
         }
+        let mut units = vec![fb.metallic, fb.roughness];
+        units.extend_from_slice(&fb.base_color);
+        units.extend(fb.anisotropy.map(|(s, _)| s));
+        if let Some(s) = fb.specular {
+            numbers.push(s.factor);
+            numbers.extend_from_slice(&s.color);
+            units.push(s.factor);
+            units.extend(s.color.map(|c| c / 25.0));
+        }
+        if let Some(c) = fb.clearcoat {
+            units.extend_from_slice(&[c.factor, c.roughness]);
+        }
+        if let Some(s) = fb.sheen {
+            units.push(s.roughness);
+            units.extend_from_slice(&s.color);
+        }
+        let ps = &self.preview_surface;
+        units.extend_from_slice(&ps.diffuse_color);
+        units.extend_from_slice(&ps.specular_color);
+        units.extend_from_slice(&[
+            ps.metallic,
+            ps.roughness,
+            ps.clearcoat,
+            ps.clearcoat_roughness,
+        ]);
+        numbers.extend_from_slice(&units);
+        numbers.extend_from_slice(&[ps.relative_error, ps.uniform_relative_error]);
         if !finite(&numbers) {
             return Err(self.invalid("fallback", "has a non-finite value"));
         }
-        let unit = |x: f64| (0.0..=1.0).contains(&x);
-        if !fb.base_color.iter().all(|&c| unit(c))
-            || !unit(fb.metallic)
-            || !unit(fb.roughness)
-            || !fb.anisotropy.is_none_or(|(s, _)| unit(s))
-        {
-            return Err(self.invalid("fallback", "base_color, metallic, roughness and anisotropy strength must lie in [0, 1] (glTF and UsdPreviewSurface ranges)"));
+        if !units.iter().all(|x| (0.0..=1.0).contains(x)) {
+            return Err(self.invalid("fallback", "a colour, factor or roughness lies outside [0, 1] (specularColorFactor outside [0, 25]): the glTF and UsdPreviewSurface ranges"));
         }
         for (label, s) in [
             ("model", &self.model),

@@ -126,6 +126,7 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let mat = prim_name(&desc.name);
     let mat_path = format!("/Root/Looks/{mat}");
     let fb = &desc.fallback;
+    let ps = &desc.preview_surface;
     let mut inputs: Vec<(&str, &str, String)> = vec![
         ("string", "brdf_convention", quote(&desc.brdf_convention)),
         ("double3[]", "centres", list(&desc.centres, |c| dvec3(*c))),
@@ -215,6 +216,21 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     let _ = writeln!(
         o,
         "                    double fallback_relative_error = {:?}",
+        ps.relative_error
+    );
+    let _ = writeln!(
+        o,
+        "                    double fallback_uniform_relative_error = {:?}",
+        ps.uniform_relative_error
+    );
+    let _ = writeln!(
+        o,
+        "                    token fallback_weighting = {}",
+        quote(fb.weighting.name())
+    );
+    let _ = writeln!(
+        o,
+        "                    double gltf_fallback_relative_error = {:?}",
         fb.relative_error
     );
     let _ = writeln!(o, "                    dictionary provenance = {{");
@@ -236,8 +252,42 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
     );
     let _ = writeln!(
         o,
+        "            token outputs:mtlx:surface.connect = <{mat_path}/OpenPbrSurface.outputs:out>"
+    );
+    let _ = writeln!(
+        o,
         "            token outputs:surface.connect = <{mat_path}/PreviewSurface.outputs:surface>"
     );
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "            def Shader \"OpenPbrSurface\"\n            {{"
+    );
+    let _ = writeln!(
+        o,
+        "                uniform token info:id = \"{}\"",
+        crate::mtlx::OPEN_PBR_NODEDEF
+    );
+    for input in crate::mtlx::open_pbr_inputs(desc) {
+        if input.value.len() == 3 {
+            let v = [input.value[0], input.value[1], input.value[2]];
+            let _ = writeln!(
+                o,
+                "                color3f inputs:{} = {}",
+                input.name,
+                vec3(v)
+            );
+        } else {
+            let _ = writeln!(
+                o,
+                "                float inputs:{} = {}",
+                input.name,
+                num(input.value[0])
+            );
+        }
+    }
+    let _ = writeln!(o, "                token outputs:out");
+    let _ = writeln!(o, "            }}");
     let _ = writeln!(o);
     let _ = writeln!(
         o,
@@ -247,22 +297,29 @@ pub fn encode_usda(desc: &MaterialDesc, scene: Option<&SceneMesh>) -> Result<Str
         o,
         "                uniform token info:id = \"UsdPreviewSurface\""
     );
-    let _ = writeln!(
-        o,
-        "                color3f inputs:diffuseColor = {}",
-        vec3(fb.base_color)
-    );
-    let _ = writeln!(
-        o,
-        "                float inputs:metallic = {}",
-        num(fb.metallic)
-    );
-    let _ = writeln!(
-        o,
-        "                float inputs:roughness = {}",
-        num(fb.roughness)
-    );
-    let _ = writeln!(o, "                int inputs:useSpecularWorkflow = 0");
+    let mut preview = vec![
+        format!("float inputs:clearcoat = {}", num(ps.clearcoat)),
+        format!(
+            "float inputs:clearcoatRoughness = {}",
+            num(ps.clearcoat_roughness)
+        ),
+        format!("color3f inputs:diffuseColor = {}", vec3(ps.diffuse_color)),
+        format!("float inputs:metallic = {}", num(ps.metallic)),
+        format!("float inputs:roughness = {}", num(ps.roughness)),
+    ];
+    if ps.use_specular_workflow {
+        preview.push(format!(
+            "color3f inputs:specularColor = {}",
+            vec3(ps.specular_color)
+        ));
+    }
+    preview.push(format!(
+        "int inputs:useSpecularWorkflow = {}",
+        u8::from(ps.use_specular_workflow)
+    ));
+    for line in preview {
+        let _ = writeln!(o, "                {line}");
+    }
     let _ = writeln!(o, "                token outputs:surface");
     let _ = writeln!(o, "            }}");
     let _ = writeln!(o);

@@ -28,7 +28,7 @@ fn check(scene: bool, isotropic_fallback: bool) {
         .unwrap();
     assert_eq!(files.len(), 2, "{files:?}");
     let mut json = desc.lobe_table_json();
-    json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": desc.fallback.anisotropy });
+    json["fallback"] = usd_fallback_json(&desc, serde_json::json!(desc.fallback.anisotropy));
     if scene {
         let c = scene_camera();
         json["camera"] = serde_json::json!({ "eye": c.eye, "forward": c.forward, "up": c.up, "yfov_deg": c.yfov_rad.to_degrees(), "width": c.width, "height": c.height });
@@ -114,7 +114,7 @@ fn check_usd_catches_a_lost_or_wrong_anisotropy() {
         let dir = temp_dir(&format!("usd-aniso-{tag}"));
         UsdExporter.export(desc, None, &dir).unwrap();
         let mut json = desc.lobe_table_json();
-        json["fallback"] = serde_json::json!({ "base_color": desc.fallback.base_color, "metallic": desc.fallback.metallic, "roughness": desc.fallback.roughness, "anisotropy": anisotropy });
+        json["fallback"] = usd_fallback_json(desc, anisotropy);
         let json_path = dir.join("material.json");
         std::fs::write(&json_path, json.to_string()).unwrap();
         let (ok, out, err) = run(Command::new(&py)

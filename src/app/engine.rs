@@ -561,14 +561,26 @@ impl Engine {
             .scene_file(&self.scene.source)
             .env_file(&self.env_path)
             .env_rotation_deg(self.light.as_ref().map_or(0.0, |(r, _)| r.to_degrees()));
+        let mesh = crate::export::scene_mesh(&self.scene.mesh, self.tangents.as_deref());
+        // The fallbacks are fitted where the scene's first camera looks, under the current light.
+        let mut seen = mesh.clone();
+        seen.camera = self
+            .scene
+            .cameras
+            .first()
+            .map(|c| crate::export::scene_camera(c, 640, 480));
+        seen.environment = Some(crate::export::scene_environment(
+            &self.env,
+            self.light.as_ref().map_or(0.0, |(r, _)| *r),
+        ));
         let desc = crate::export::material_desc(
             material,
             name,
             crate::export::EXPORT_TABLE_RESOLUTION,
             provenance,
+            Some(&seen),
         )
         .map_err(|e| AppError::Stage(e.to_string()))?;
-        let mesh = crate::export::scene_mesh(&self.scene.mesh, self.tangents.as_deref());
         std::fs::create_dir_all(dir).map_err(|e| AppError::Io {
             path: dir.to_path_buf(),
             reason: e.to_string(),

@@ -14,6 +14,9 @@
 //! - [`dbrdf`]: the static term s (with a denominator that cannot cancel or vanish) and f_s.
 //! - [`energy`]: the energy rows g_j^l = ∫ G(h·ξ_j) s(wi, wo^l) (wi·n) dwi, integrated in
 //!   half-vector space, and the directional albedo of any fitted p.
+//! - [`standard`]: not glint's model but the standard ones its fallbacks are exported as (glTF
+//!   with `KHR_materials_*`, UsdPreviewSurface), evaluated per their specifications in the same
+//!   convention (no cosine inside f; the split A·c + B includes it).
 //!
 //! Inputs: local unit directions, lobe sets, coefficients. Outputs: f64. Invariants: f_s is
 //! reciprocal for any p and ≥ 0 when p ≥ 0; no IO.
@@ -21,6 +24,7 @@
 pub mod dbrdf;
 pub mod energy;
 pub mod fresnel;
+pub mod standard;
 
 pub use dbrdf::{DistributionBrdf, denominator, half_vector, static_term};
 pub use energy::EnergyTable;

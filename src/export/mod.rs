@@ -8,6 +8,7 @@
 //!
 //! Invariants: no IO except hashing the material file a provenance names; deterministic.
 
+pub mod layered_fallback;
 pub mod pbr_fallback;
 mod provenance;
 mod scene;
@@ -80,13 +81,15 @@ pub fn merl_table(material: &Material, lobes: &LobeSet, table: &PhPyramid) -> Me
     })
 }
 
-/// The exporters' description of a material: lobe table, p(h) at `table_resolution`, fallback,
-/// MERL.
+/// The exporters' description of a material: lobe table, p(h) at `table_resolution`, the glTF and
+/// UsdPreviewSurface fallbacks (fitted where `scene`'s camera looks under its environment, when it
+/// carries both), MERL.
 pub fn material_desc(
     material: &Material,
     name: &str,
     table_resolution: usize,
     mut provenance: Provenance,
+    scene: Option<&glint_exporters::SceneMesh>,
 ) -> Result<MaterialDesc, SphereError> {
     let lobes: LobeSet = material.lobes()?;
     let coefficients = [
@@ -103,7 +106,22 @@ pub fn material_desc(
             format!("{:?}", fit.isotropic_relative_error),
         );
     }
-    let fallback = fit.fallback;
+    let objective = layered_fallback::Objective::new(&table, material.rho_d, material.f0, scene);
+    let fallback = layered_fallback::fit_gltf(&objective, &fit.fallback);
+    let preview_surface = layered_fallback::fit_preview(&objective, &fallback);
+    provenance.set("fallback_weighting", fallback.weighting.name().to_string());
+    provenance.set(
+        "fallback_gltf_relative_error",
+        format!("{:?}", fallback.relative_error),
+    );
+    provenance.set(
+        "fallback_gltf_one_lobe_relative_error",
+        format!("{:?}", fallback.one_lobe_relative_error),
+    );
+    provenance.set(
+        "fallback_usd_relative_error",
+        format!("{:?}", preview_surface.relative_error),
+    );
     let merl = merl_table(material, &lobes, &table);
     Ok(MaterialDesc {
         name: name.to_string(),
@@ -122,6 +140,7 @@ pub fn material_desc(
         provenance: provenance.into_map(),
         table: table.to_table(),
         fallback,
+        preview_surface,
         merl: Some(merl),
     })
 }

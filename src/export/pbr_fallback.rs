@@ -248,6 +248,7 @@ impl Samples {
             roughness: best.1,
             anisotropy: None,
             relative_error: self.relative(best.3),
+            ..Default::default()
         }
     }
 
@@ -342,6 +343,7 @@ impl Samples {
             roughness: r,
             anisotropy: Some((s, if rotation < PI { rotation } else { 0.0 })),
             relative_error: self.relative(err),
+            ..Default::default()
         }
     }
 }
@@ -811,6 +813,7 @@ mod tests {
             roughness: 0.6968888888888889,
             anisotropy: None,
             relative_error: 0.15241990084451684,
+            ..Default::default()
         };
         let close = |a: f64, b: f64| (a - b).abs() <= 5e-5 * b.abs();
         assert!(

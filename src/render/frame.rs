@@ -1,5 +1,6 @@
 //! A fitted material rendered on a bake, as `glint render` renders it: the PRT frame (tabulated p)
-//! or the Monte Carlo reference (exact lobes, rays against the mesh).
+//! or the Monte Carlo reference (exact lobes, rays against the mesh), and the reference of an
+//! exported fallback.
 //!
 //! Inputs: a [`LoadedBake`], a [`Material`], a camera and image size, the environment's rotation.
 //! Output: a linear [`Image`] (object pixels only; the caller fills the background) and what
@@ -112,4 +113,38 @@ pub fn reference_frame(
         1,
     );
     Ok((img, format!("Monte Carlo reference, {spp} spp")))
+}
+
+/// The Monte Carlo reference of a standard material (an exported fallback, read by
+/// [`crate::material_file::read_fallback`]) with `spp` samples per pixel: the same estimator,
+/// visibility, light and seed as [`reference_frame`], so the two images differ by the BRDFs only.
+pub fn reference_frame_standard(
+    bake: &LoadedBake,
+    material: &crate::brdf::standard::StandardMaterial,
+    camera: &Camera,
+    (w, h): (u32, u32),
+    rotation_rad: f64,
+    spp: u32,
+) -> Result<(Image, String), FrameError> {
+    if spp == 0 {
+        return Err(FrameError::NoSamples);
+    }
+    let tracer = Tracer::new(&bake.scene.mesh);
+    let scene = super::ReferenceScene {
+        mesh: &bake.scene.mesh,
+        tangents: bake.tangents.as_deref(),
+        tracer: &tracer,
+        ray_offset: ray_offset(bake),
+        env: &bake.env,
+        rotation_rad,
+    };
+    let img = super::render_reference_standard(&scene, material, camera, (w, h), spp, 1);
+    let what = match material {
+        crate::brdf::standard::StandardMaterial::Gltf { .. } => "glTF fallback",
+        crate::brdf::standard::StandardMaterial::Preview { .. } => "UsdPreviewSurface fallback",
+    };
+    Ok((
+        img,
+        format!("Monte Carlo reference of the {what}, {spp} spp"),
+    ))
 }

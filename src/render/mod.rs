@@ -20,5 +20,5 @@ pub mod table;
 
 pub use image::{Image, ImageError};
 pub use prt::{Prt, PrtSettings, Shading, Specular, VertexLight};
-pub use reference::{ExactMaterial, render_reference};
+pub use reference::{ExactMaterial, ReferenceScene, render_reference, render_reference_standard};
 pub use table::PhPyramid;

@@ -22,6 +22,7 @@
 use super::image::Image;
 use crate::bake::tracer::Tracer;
 use crate::brdf::dbrdf::static_term;
+use crate::brdf::standard::StandardMaterial;
 use crate::env::{EnvMap, direction_to_uv, rotate_y, uv_to_direction};
 use crate::math::Rng;
 use crate::raster::rasterize;
@@ -145,6 +146,14 @@ fn search(cdf: &[f64], x: f64) -> usize {
     k
 }
 
+/// What the reference needs of a BRDF (local frame, f without the cosine).
+trait Shade: Sync {
+    fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3];
+    /// Density of [`Shade::sample`]'s wi per steradian.
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64;
+    fn sample(&self, wo: DVec3, rng: &mut Rng) -> DVec3;
+}
+
 /// The BRDF as sampled and evaluated by the reference (local frame).
 struct Brdf<'a> {
     m: ExactMaterial<'a>,
@@ -188,6 +197,24 @@ impl<'a> Brdf<'a> {
         }
     }
 
+    /// Density of the half-vector mixture at h (per steradian of h).
+    fn pdf_h(&self, h: DVec3) -> f64 {
+        let total = *self.lobe_cdf.last().unwrap_or(&0.0);
+        if total <= 0.0 {
+            return 0.0;
+        }
+        let mut acc = 0.0;
+        for j in 0..self.m.lobes.len() {
+            let w = self.lobe_cdf[j + 1] - self.lobe_cdf[j];
+            if w > 0.0 {
+                acc += w * self.m.lobes.eval_exact(j, h);
+            }
+        }
+        acc / total * self.vmf_norm
+    }
+}
+
+impl Shade for Brdf<'_> {
     fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
         let diffuse = self.m.rho_d.map(|r| r / PI);
         if wi.z <= 0.0 {
@@ -216,22 +243,6 @@ impl<'a> Brdf<'a> {
             }
         }
         std::array::from_fn(|c| diffuse[c] + p[c] * s)
-    }
-
-    /// Density of the half-vector mixture at h (per steradian of h).
-    fn pdf_h(&self, h: DVec3) -> f64 {
-        let total = *self.lobe_cdf.last().unwrap_or(&0.0);
-        if total <= 0.0 {
-            return 0.0;
-        }
-        let mut acc = 0.0;
-        for j in 0..self.m.lobes.len() {
-            let w = self.lobe_cdf[j + 1] - self.lobe_cdf[j];
-            if w > 0.0 {
-                acc += w * self.m.lobes.eval_exact(j, h);
-            }
-        }
-        acc / total * self.vmf_norm
     }
 
     fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
@@ -280,6 +291,97 @@ impl<'a> Brdf<'a> {
     }
 }
 
+/// A standard material (an exported fallback) as the reference samples it: the cosine and each
+/// GGX lobe (base, coat) in equal shares, h drawn from D(h)·cos θh.
+struct StandardShade<'a> {
+    m: &'a StandardMaterial,
+    alphas: Vec<f64>,
+}
+
+impl StandardShade<'_> {
+    fn share(&self) -> f64 {
+        1.0 / (1 + self.alphas.len()) as f64
+    }
+}
+
+/// GGX D(h) cos θh: the density of h per steradian.
+fn ggx_pdf_h(alpha: f64, cos_h: f64) -> f64 {
+    if cos_h <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let t = cos_h * cos_h * (a2 - 1.0) + 1.0;
+    a2 / (PI * t * t) * cos_h
+}
+
+impl Shade for StandardShade<'_> {
+    fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
+        self.m.eval(wi, wo)
+    }
+
+    fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        let share = self.share();
+        let mut pdf = if wi.z > 0.0 { share * wi.z / PI } else { 0.0 };
+        if let Some(h) = (wi + wo).try_normalize()
+            && wo.dot(h) > 0.0
+        {
+            for &alpha in &self.alphas {
+                pdf += share * ggx_pdf_h(alpha, h.z) / (4.0 * wo.dot(h));
+            }
+        }
+        pdf
+    }
+
+    fn sample(&self, wo: DVec3, rng: &mut Rng) -> DVec3 {
+        let pick = (rng.next_f64() * (1 + self.alphas.len()) as f64) as usize;
+        if pick == 0 || pick > self.alphas.len() {
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            let r = u1.sqrt();
+            let phi = 2.0 * PI * u2;
+            return DVec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt());
+        }
+        let alpha = self.alphas[pick - 1];
+        let u = rng.next_f64();
+        // tan² θh = α² u / (1 − u).
+        let t2 = alpha * alpha * u / (1.0 - u).max(1e-300);
+        let cos_h = 1.0 / (1.0 + t2).sqrt();
+        let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
+        let phi = 2.0 * PI * rng.next_f64();
+        let h = DVec3::new(sin_h * phi.cos(), sin_h * phi.sin(), cos_h);
+        2.0 * wo.dot(h) * h - wo
+    }
+}
+
+/// Renders the Monte Carlo reference of a standard material (an exported fallback,
+/// [`StandardMaterial`]) with the same estimator, visibility and conventions as
+/// [`render_reference`].
+pub fn render_reference_standard(
+    scene: &ReferenceScene,
+    material: &StandardMaterial,
+    camera: &Camera,
+    size: (u32, u32),
+    spp: u32,
+    seed: u64,
+) -> Image {
+    let shade = StandardShade {
+        m: material,
+        alphas: material.lobe_alphas(),
+    };
+    render_with(scene, &shade, &shade, camera, size, spp, seed)
+}
+
+/// What every reference render shares: the mesh and its tangents, its visibility (a tracer and the
+/// shadow rays' offset) and its light (the environment and its rotation).
+#[derive(Clone, Copy)]
+pub struct ReferenceScene<'a> {
+    pub mesh: &'a Mesh,
+    pub tangents: Option<&'a [Vec4]>,
+    pub tracer: &'a Tracer,
+    pub ray_offset: f64,
+    pub env: &'a EnvMap,
+    pub rotation_rad: f64,
+}
+
 /// Renders the Monte Carlo reference at `spp` samples per pixel (each sample: one environment
 /// sample and one BRDF sample, MIS-weighted).
 #[allow(clippy::too_many_arguments)]
@@ -297,7 +399,6 @@ pub fn render_reference(
     spp: u32,
     seed: u64,
 ) -> Image {
-    let sampler = EnvSampler::new(env, rotation_rad);
     let full = Brdf::new(material);
     // Where the shading normal faces away from the eye only the diffuse term is kept (as in the PRT
     // renderer and the transfer): sampled by the cosine alone.
@@ -306,6 +407,44 @@ pub fn render_reference(
         coefficients: [&zero, &zero, &zero],
         ..material
     });
+    let scene = ReferenceScene {
+        mesh,
+        tangents,
+        tracer,
+        ray_offset,
+        env,
+        rotation_rad,
+    };
+    render_with(
+        &scene,
+        &full,
+        &diffuse_only,
+        camera,
+        (width, height),
+        spp,
+        seed,
+    )
+}
+
+/// The estimator: `full` where the shading normal faces the eye, `back` where it faces away.
+fn render_with(
+    scene: &ReferenceScene,
+    full: &dyn Shade,
+    back: &dyn Shade,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    spp: u32,
+    seed: u64,
+) -> Image {
+    let ReferenceScene {
+        mesh,
+        tangents,
+        tracer,
+        ray_offset,
+        env,
+        rotation_rad,
+    } = *scene;
+    let sampler = EnvSampler::new(env, rotation_rad);
     let eye = camera.eye().as_dvec3();
     let fragments = rasterize(mesh, camera, width, height);
     let shaded: Vec<(u32, u32, [f64; 3])> = fragments
@@ -333,7 +472,7 @@ pub fn render_reference(
                 None => Frame::from_normal(normal),
             };
             let wo = frame.to_local((eye - position).try_normalize().unwrap_or(normal));
-            let brdf = if wo.z > 0.0 { &full } else { &diffuse_only };
+            let brdf = if wo.z > 0.0 { full } else { back };
             // Rays leave from the smooth surface the normals describe, not from the flat facet:
             // from the facet, directions above the shading normal's horizon but below the facet's
             // plane hit the facet itself, which darkened coarse meshes in stripes along their

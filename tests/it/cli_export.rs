@@ -14,16 +14,12 @@ use crate::common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
-
 fn tool(path: PathBuf, what: &str) -> Option<PathBuf> {
     if path.exists() {
         return Some(path);
     }
     assert!(
-        !in_ci(),
+        !common::in_ci(),
         "{what} is required in CI but {} is missing (run .ci/test)",
         path.display()
     );
@@ -285,22 +281,28 @@ fn export_of_an_anisotropic_material_carries_khr_materials_anisotropy() {
         off < 5f64.to_radians(),
         "rotation {rotation} vs the coefficients' axis {axis}"
     );
-    assert_eq!(
-        json["extensionsUsed"],
-        serde_json::json!(["KHR_materials_anisotropy"])
+    assert!(
+        json["extensionsUsed"]
+            .as_array()
+            .is_some_and(|e| e.iter().any(|e| e == "KHR_materials_anisotropy")),
+        "{}",
+        json["extensionsUsed"]
     );
     assert!(
         json["meshes"][0]["primitives"][0]["attributes"]["TANGENT"].is_u64(),
         "the preview sphere needs tangents"
     );
     let glint = &mat["extras"]["glint"];
-    let iso: f64 = glint["provenance"]["fallback_isotropic_relative_error"]
-        .as_str()
-        .expect("the isotropic fit's error in the provenance")
-        .parse()
-        .unwrap();
-    let aniso = glint["fallback_relative_error"].as_f64().unwrap();
-    assert!(aniso < iso, "anisotropic fit {aniso} vs isotropic {iso}");
+    assert!(
+        glint["provenance"]["fallback_isotropic_relative_error"].is_string(),
+        "the isotropic one-lobe fit's error is in the provenance"
+    );
+    let layered = glint["fallback_relative_error"].as_f64().unwrap();
+    let one_lobe = glint["fallback_one_lobe_relative_error"].as_f64().unwrap();
+    assert!(
+        layered <= one_lobe,
+        "layered fit {layered} vs one-lobe {one_lobe}"
+    );
 
     if let Some(report) = validate_glb(&to.join("brushed.glb")) {
         assert!(
@@ -310,17 +312,11 @@ fn export_of_an_anisotropic_material_carries_khr_materials_anisotropy() {
             "{report}"
         );
     }
-    // usd-core: the stage against the material JSON, its fallback (anisotropy included) against the
-    // GLB's.
+    // usd-core: the stage against the material JSON, and the anisotropy it keeps in customData
+    // against the GLB's.
     if let Some(py) = tool(repo().join(".venv/bin/python"), "python venv with usd-core") {
         let mut expected: serde_json::Value = serde_json::from_str(&m.to_json()).unwrap();
-        let pbr = &mat["pbrMetallicRoughness"];
-        expected["fallback"] = serde_json::json!({
-            "base_color": pbr["baseColorFactor"].as_array().unwrap()[..3],
-            "metallic": pbr["metallicFactor"],
-            "roughness": pbr["roughnessFactor"],
-            "anisotropy": [strength, rotation],
-        });
+        expected["fallback"] = serde_json::json!({ "anisotropy": [strength, rotation] });
         let expected_path = dir.join("expected.json");
         std::fs::write(&expected_path, expected.to_string()).unwrap();
         let o = Command::new(py)
@@ -1038,7 +1034,7 @@ fn mitsuba_renders_exported_scenes_as_glint_does() {
         .unwrap();
     if !probe.status.success() {
         assert!(
-            !in_ci(),
+            !common::in_ci(),
             "mitsuba and glint_mitsuba are required in CI: {}",
             String::from_utf8_lossy(&probe.stderr)
         );

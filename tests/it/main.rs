@@ -12,6 +12,7 @@ mod app_ui;
 mod bad_input;
 mod bake_file;
 mod bake_visibility;
+mod blender;
 mod cli_export;
 mod cli_fit;
 mod cli_inspect;

@@ -8,7 +8,10 @@
 #![allow(dead_code)]
 
 use glint_exporters::brdf::lobes_p;
-use glint_exporters::{MaterialDesc, PbrFallback, PhTable, SceneMesh};
+use glint_exporters::{
+    ClearcoatLayer, MaterialDesc, PbrFallback, PhTable, PreviewSurfaceFallback, SceneMesh,
+    SheenLayer, SpecularLayer, Weighting,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -100,7 +103,33 @@ pub fn material(name: &str, resolution: u32) -> MaterialDesc {
             metallic: 0.0,
             roughness: 0.23,
             anisotropy: Some((0.4, 0.25)),
+            specular: Some(SpecularLayer {
+                factor: 0.8,
+                color: [1.5, 1.25, 1.0],
+            }),
+            clearcoat: Some(ClearcoatLayer {
+                factor: 0.6,
+                roughness: 0.1,
+            }),
+            sheen: Some(SheenLayer {
+                color: [0.2, 0.2, 0.25],
+                roughness: 0.4,
+            }),
             relative_error: 0.12,
+            uniform_relative_error: 0.14,
+            one_lobe_relative_error: 0.2,
+            weighting: Weighting::Scene,
+        },
+        preview_surface: PreviewSurfaceFallback {
+            diffuse_color: [0.3, 0.2, 0.1],
+            use_specular_workflow: true,
+            specular_color: [0.06, 0.05, 0.04],
+            metallic: 0.0,
+            roughness: 0.25,
+            clearcoat: 0.6,
+            clearcoat_roughness: 0.1,
+            relative_error: 0.13,
+            uniform_relative_error: 0.15,
         },
         merl: None,
     };
@@ -271,4 +300,20 @@ pub fn scene_camera() -> glint_exporters::SceneCamera {
         znear: 1.0,
         zfar: Some(8.0),
     }
+}
+
+/// The "fallback" object `python/check_usd.py` compares the stage's UsdPreviewSurface (and the
+/// anisotropy kept in customData) with.
+pub fn usd_fallback_json(desc: &MaterialDesc, anisotropy: serde_json::Value) -> serde_json::Value {
+    let ps = &desc.preview_surface;
+    serde_json::json!({
+        "diffuse_color": ps.diffuse_color,
+        "metallic": ps.metallic,
+        "roughness": ps.roughness,
+        "clearcoat": ps.clearcoat,
+        "clearcoat_roughness": ps.clearcoat_roughness,
+        "use_specular_workflow": ps.use_specular_workflow,
+        "specular_color": ps.specular_color,
+        "anisotropy": anisotropy,
+    })
 }

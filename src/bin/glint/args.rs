@@ -61,6 +61,10 @@ pub struct RenderArgs {
     /// lavapipe where there is no GPU) instead of the CPU.
     #[arg(long)]
     pub gpu: bool,
+    /// With --reference: render the fallback the --material export carries instead of glint's BRDF
+    /// (the glTF material of a .glb, the UsdPreviewSurface of a .usda), as other tools show it.
+    #[arg(long, requires = "reference")]
+    pub fallback: bool,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
@@ -148,9 +152,10 @@ pub struct ExportArgs {
     pub env: Option<PathBuf>,
     #[command(flatten)]
     pub view: ViewArgs,
-    /// Resolution of the p(h) table.
-    #[arg(long, default_value_t = glint::export::EXPORT_TABLE_RESOLUTION)]
-    pub table_resolution: usize,
+    /// Resolution of the p(h) table (16 to 4096).
+    #[arg(long, default_value_t = glint::export::EXPORT_TABLE_RESOLUTION as u16,
+          value_parser = clap::value_parser!(u16).range(16..=4096))]
+    pub table_resolution: u16,
     /// List the formats and exit.
     #[arg(long)]
     pub list: bool,

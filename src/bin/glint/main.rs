@@ -261,6 +261,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let rotation = args.view.rotate.to_radians();
     let start = std::time::Instant::now();
     let (mut image, what) = match args.reference {
+        Some(spp) if args.fallback => {
+            let fallback = glint::material_file::read_fallback(&args.material)?;
+            frame::reference_frame_standard(&bake, &fallback, &camera, (w, h), rotation, spp)?
+        }
         Some(spp) => frame::reference_frame(&bake, &material, &camera, (w, h), rotation, spp)?,
         None if args.gpu => glint::gpu::preview_frame(&bake, &material, &camera, (w, h), rotation)?,
         None => frame::prt_frame(&bake, &material, &camera, (w, h), rotation)?,
@@ -300,19 +304,14 @@ fn export(args: &ExportArgs) -> Result<()> {
     let mut provenance = glint::export::Provenance::new(glint::export::Tool::Cli, &material);
     provenance.material_file(material_path)?;
     let scene = glint::export::export_scene(&args.scene_choice(), &mut provenance)?;
-    if !(16..=4096).contains(&args.table_resolution) {
-        anyhow::bail!(
-            "--table-resolution {} is outside 16..=4096",
-            args.table_resolution
-        );
-    }
-    let desc = glint::export::material_desc(&material, &name, args.table_resolution, provenance)?;
+    let res = args.table_resolution as usize;
+    let desc = glint::export::material_desc(&material, &name, res, provenance, scene.as_ref())?;
     std::fs::create_dir_all(to).with_context(|| format!("cannot create {}", to.display()))?;
     let formats: Vec<&str> = args.formats.iter().map(|s| s.as_str()).collect();
     for p in glint_exporters::export_all(&desc, scene.as_ref(), to, &formats)? {
         println!("wrote {}", p.display());
     }
-    println!("{}", desc.fallback.summary(desc.isotropic));
+    println!("{}", glint_exporters::fallback_summary::summary_text(&desc));
     Ok(())
 }
 

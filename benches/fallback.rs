@@ -1,0 +1,87 @@
+//! Fallback benchmarks: `cargo bench --bench fallback`. The glTF and UsdPreviewSurface fallbacks of
+//! two materials, with the time each step takes (median of 3 runs) and the errors before (the
+//! one-lobe fallback) and after (the layered one).
+//!
+//! Materials: the demo material (the sample strokes fitted on the bunny under samples/studio_1k,
+//! default view) and one sharp ring lobe along the normal (λ = 81, ρd = 0.05). Each is fitted with
+//! uniform weighting (no scene) and with the scene's weighting: the bunny under studio_1k seen
+//! from the default camera (demo) and from the orbit 20°, 15°, 2.5 radii (sharp lobe).
+
+use glint::export::{
+    layered_fallback::{Objective, fit_gltf, fit_preview},
+    material_fallback, scene_camera, scene_environment, scene_mesh,
+};
+use glint::render::table::PhPyramid;
+use std::time::Instant;
+
+#[path = "../tests/it/common.rs"]
+mod common;
+#[path = "../tests/it/render_cases.rs"]
+mod render_cases;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Median seconds of 3 runs and the last result.
+fn time<T>(mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut out = None;
+    let times = (0..3)
+        .map(|_| {
+            let t = Instant::now();
+            out = Some(f());
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    (median(times), out.expect("three runs"))
+}
+
+fn main() {
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let c = render_cases::case_at(
+        &samples.join("bunny.glb"),
+        &samples.join("studio_1k.exr"),
+        true,
+    );
+    let (w, h) = (640, 480);
+    let default_camera = glint::scene::view::render_view(&c.scene, None, None, Some("640x480"))
+        .expect("the default view")
+        .0;
+    let orbit = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
+    let materials = [
+        ("demo", render_cases::fitted(&c), default_camera),
+        ("sharp lobe", render_cases::one_sharp_lobe(), orbit),
+    ];
+    for (name, material, camera) in materials {
+        let lobes = material.lobes().expect("a valid layout");
+        let coefficients = [
+            material.coefficients[0].as_slice(),
+            material.coefficients[1].as_slice(),
+            material.coefficients[2].as_slice(),
+        ];
+        let table = PhPyramid::build_unfiltered(&lobes, coefficients, 512);
+        let (t_one, one) = time(|| material_fallback(&material, &lobes, &table));
+        let mut mesh = scene_mesh(&c.scene.mesh, c.tangents.as_deref());
+        mesh.camera = Some(scene_camera(&camera, w, h));
+        mesh.environment = Some(scene_environment(&c.env, 0.0));
+        for scene in [None, Some(&mesh)] {
+            let (t_sets, objective) =
+                time(|| Objective::new(&table, material.rho_d, material.f0, scene));
+            let (t_gltf, gltf) = time(|| fit_gltf(&objective, &one.fallback));
+            let (t_usd, usd) = time(|| fit_preview(&objective, &gltf));
+            println!(
+                "{name}, {} weighting: one-lobe fit {t_one:.3} s, pairs {t_sets:.3} s, glTF {t_gltf:.3} s, USD {t_usd:.3} s; total {:.3} s",
+                objective.weighting().name(),
+                t_one + t_sets + t_gltf + t_usd
+            );
+            println!(
+                "  before (one-lobe): {:.1} % (its own measure: {:.1} %); after: {}",
+                gltf.one_lobe_relative_error * 100.0,
+                one.fallback.relative_error * 100.0,
+                gltf.summary(material.layout.is_isotropic())
+            );
+            println!("  {}", usd.summary());
+        }
+    }
+}
