@@ -355,6 +355,13 @@ impl StandardMaterial {
         }
     }
 
+    /// The albedo ρ of the diffuse term kept where the shading normal faces away from the eye:
+    /// [`StandardMaterial::eval`] is ρ/π there.
+    pub fn back_facing_rho(&self) -> [f64; 3] {
+        let below = DVec3::new(0.0, 0.0, -1.0);
+        self.eval(DVec3::Z, below).map(|f| f * PI)
+    }
+
     /// The GGX α of each specular lobe (base, coat), for importance sampling.
     pub fn lobe_alphas(&self) -> Vec<f64> {
         let (r, coat) = match self {

@@ -23,8 +23,8 @@
 //! first candidate and the start; then `KHR_materials_specular`, `_clearcoat` and `_sheen` are
 //! tried in turn from several starts each, and a layer is kept only when it lowers the objective
 //! by at least [`KEEP_LAYER`]; the result is never worse than the first candidate. USD: the
-//! metallic and the specular workflow are both fitted from the glTF result, with and without a
-//! clearcoat, and the best is kept.
+//! metallic and the specular workflow are both fitted from the glTF result, each with the glTF
+//! fit's coat and with the other choice (none, or a fresh one), and the best is kept.
 //!
 //! Invariants: no IO; deterministic (fixed seeds; parallel evaluations collected in order).
 
@@ -500,7 +500,7 @@ impl Objective {
     }
 
     /// UsdPreviewSurface at `p`: (diffuse, specular colour) and residuals. The colours are found
-    /// by three rounds of closed-form solves, each with the other colour (and the previous
+    /// by two rounds of closed-form solves, each with the other colour (and the previous
     /// iterate, where the model is not linear) held.
     fn preview(
         &self,
@@ -520,7 +520,7 @@ impl Objective {
                 })
                 .collect::<Vec<([f64; 3], [f64; 3])>>()
         };
-        for _ in 0..3 {
+        for _ in 0..2 {
             (diffuse, residuals) = self.solve(&parts(false, diffuse, specular));
             if p.use_specular_workflow {
                 (specular, residuals) = self.solve(&parts(true, diffuse, specular));
@@ -790,7 +790,9 @@ pub fn fit_preview(objective: &Objective, gltf: &PbrFallback) -> PreviewSurfaceF
     );
     let mut best: Option<(PreviewParams, f64)> = None;
     for specular_workflow in [false, true] {
-        for (cc, rc) in [coat, (0.0, 0.1), (1.0, 0.1)] {
+        // The glTF fit's coat, and the other choice: none when it has one, a fresh one when not.
+        let other = if coat.0 > 0.0 { (0.0, 0.1) } else { (1.0, 0.1) };
+        for (cc, rc) in [coat, other] {
             let make = |y: &[f64]| PreviewParams {
                 use_specular_workflow: specular_workflow,
                 metallic: if specular_workflow { 0.0 } else { y[3] },

@@ -10,6 +10,7 @@
 
 use super::{ExactMaterial, Image, Prt, PrtSettings, Shading, Specular, render_reference, table};
 use crate::bake::{LoadedBake, Tracer};
+use crate::brdf::standard::StandardMaterial;
 use crate::fit::material::Material;
 use crate::light::LightSums;
 use crate::scene::Camera;
@@ -48,8 +49,55 @@ pub fn prt_frame(
     rotation_rad: f64,
 ) -> Result<(Image, String), FrameError> {
     let lobes = material_lobes(bake, material)?;
-    let (set, tree) = bake.light_tree()?;
     let c = &material.coefficients;
+    let t = table::PhPyramid::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        table::default_resolution(lobes.lambda()),
+    );
+    let shading = Shading {
+        rho_d: material.rho_d,
+        f0: material.f0,
+        specular: Specular::Table(&t),
+    };
+    let img = prt_render(bake, camera, (w, h), rotation_rad, &shading)?;
+    Ok((img, format!("PRT, p(h) table {}²", t.resolution())))
+}
+
+/// The CPU PRT frame of a standard material (an exported fallback): the same light runs as
+/// [`prt_frame`], the material evaluated whole at each run's direction (not pre-filtered).
+pub fn prt_frame_standard(
+    bake: &LoadedBake,
+    material: &StandardMaterial,
+    camera: &Camera,
+    size: (u32, u32),
+    rotation_rad: f64,
+) -> Result<(Image, String), FrameError> {
+    let shading = Shading {
+        rho_d: material.back_facing_rho(),
+        f0: 0.04,
+        specular: Specular::Standard(material),
+    };
+    let img = prt_render(bake, camera, size, rotation_rad, &shading)?;
+    Ok((img, format!("PRT of the {}", standard_name(material))))
+}
+
+fn standard_name(material: &StandardMaterial) -> &'static str {
+    match material {
+        StandardMaterial::Gltf { .. } => "glTF fallback",
+        StandardMaterial::Preview { .. } => "UsdPreviewSurface fallback",
+    }
+}
+
+/// A PRT frame with default settings.
+fn prt_render(
+    bake: &LoadedBake,
+    camera: &Camera,
+    (w, h): (u32, u32),
+    rotation_rad: f64,
+    shading: &Shading,
+) -> Result<Image, FrameError> {
+    let (set, tree) = bake.light_tree()?;
     let light = LightSums::new(&bake.env, &set, &tree, rotation_rad);
     let prt = Prt::new(
         &bake.scene.mesh,
@@ -58,23 +106,7 @@ pub fn prt_frame(
         bake.tangents.as_deref(),
         PrtSettings::default(),
     );
-    let t = table::PhPyramid::build(
-        &lobes,
-        [&c[0], &c[1], &c[2]],
-        table::default_resolution(lobes.lambda()),
-    );
-    let img = prt.render(
-        &light,
-        camera,
-        w,
-        h,
-        &Shading {
-            rho_d: material.rho_d,
-            f0: material.f0,
-            specular: Specular::Table(&t),
-        },
-    );
-    Ok((img, format!("PRT, p(h) table {}²", t.resolution())))
+    Ok(prt.render(&light, camera, w, h, shading))
 }
 
 /// The Monte Carlo reference with `spp` samples per pixel.
@@ -120,7 +152,7 @@ pub fn reference_frame(
 /// visibility, light and seed as [`reference_frame`], so the two images differ by the BRDFs only.
 pub fn reference_frame_standard(
     bake: &LoadedBake,
-    material: &crate::brdf::standard::StandardMaterial,
+    material: &StandardMaterial,
     camera: &Camera,
     (w, h): (u32, u32),
     rotation_rad: f64,
@@ -139,10 +171,7 @@ pub fn reference_frame_standard(
         rotation_rad,
     };
     let img = super::render_reference_standard(&scene, material, camera, (w, h), spp, 1);
-    let what = match material {
-        crate::brdf::standard::StandardMaterial::Gltf { .. } => "glTF fallback",
-        crate::brdf::standard::StandardMaterial::Preview { .. } => "UsdPreviewSurface fallback",
-    };
+    let what = standard_name(material);
     Ok((
         img,
         format!("Monte Carlo reference of the {what}, {spp} spp"),

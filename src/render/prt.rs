@@ -46,6 +46,7 @@ use super::image::Image;
 use super::table::{PhPyramid, filtered_exact};
 use crate::bake::{Cuts, Span, for_each_run};
 use crate::brdf::dbrdf::{half_vector_cosines, static_term, static_term_parts};
+use crate::brdf::standard::StandardMaterial;
 use crate::light::LightSums;
 use crate::light::{LUMINANCE, luminance, spread};
 use crate::raster::{rasterize, rasterize_triangles};
@@ -183,6 +184,10 @@ pub enum Specular<'a> {
         lobes: &'a LobeSet,
         coefficients: [&'a [f64]; 3],
     },
+    /// A standard material (an exported fallback), evaluated whole at each run's direction, less
+    /// the [`Shading::rho_d`] term (set it to [`StandardMaterial::back_facing_rho`]); not
+    /// pre-filtered.
+    Standard(&'a StandardMaterial),
 }
 
 /// The material as the renderer needs it.
@@ -739,6 +744,17 @@ impl<'a> Prt<'a> {
         specular: Specular,
     ) -> Option<(f64, [f64; 3])> {
         let dir = lum_moment.try_normalize()?;
+        if let Specular::Standard(m) = specular {
+            let wi = frame.to_local(dir);
+            if wi.z <= 0.0 {
+                return None;
+            }
+            let (f, rho) = (m.eval(wi, wo), m.back_facing_rho());
+            return Some((
+                1.0,
+                std::array::from_fn(|c| f[c] - rho[c] / std::f64::consts::PI),
+            ));
+        }
         if let Specular::Table(t) = specular
             && !self.settings.texel_lookups
             && t.has_profile()
@@ -770,7 +786,7 @@ impl<'a> Prt<'a> {
         let lambda = match specular {
             Specular::Table(t) => t.lambda(),
             Specular::Exact { lobes, .. } => lobes.lambda(),
-            Specular::None => return None,
+            Specular::None | Specular::Standard(_) => return None,
         };
         let spread = if self.settings.prefilter {
             half_vector_spread(v_omega, wo.dot(h), lambda, self.settings.per_pixel)
@@ -790,7 +806,7 @@ impl<'a> Prt<'a> {
                 lobes,
                 coefficients,
             } => filtered_exact(lobes, coefficients, h, spread),
-            Specular::None => return None,
+            Specular::None | Specular::Standard(_) => return None,
         };
         Some((s, p))
     }

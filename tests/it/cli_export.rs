@@ -1308,3 +1308,95 @@ fn mitsuba_renders_exported_scenes_as_glint_does() {
     println!("worst relative RMSE {:.2} %", 100.0 * worst);
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// `glint render --fallback` renders the fallback an export carries: the glTF material of the
+/// `.glb` and the UsdPreviewSurface of the `.usda`, by the PRT and by the Monte Carlo reference,
+/// which agree; the fallback's picture differs from glint's own by about its error, not by nothing
+/// (it is not glint's BRDF drawn again); a material JSON has no fallback and is refused in one line.
+#[test]
+fn render_fallback_draws_the_exported_fallback_by_prt_and_reference() {
+    let (dir, bake, material) = fitted("render-fallback");
+    let to = dir.join("out");
+    let size = "64x48";
+    let out = run_glint!([
+        "export".as_ref(),
+        material.as_os_str(),
+        "--to".as_ref(),
+        to.as_os_str(),
+        "--bake".as_ref(),
+        bake.as_os_str(),
+        "--size".as_ref(),
+        size.as_ref(),
+        "--formats".as_ref(),
+        "gltf,usd".as_ref()
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let render = |m: &Path, reference: Option<&str>, fallback: bool, out: &Path| {
+        let mut argv: Vec<std::ffi::OsString> = vec![
+            "render".into(),
+            bake.clone().into(),
+            "--material".into(),
+            m.into(),
+            "--size".into(),
+            size.into(),
+            "--out".into(),
+            out.into(),
+        ];
+        if let Some(spp) = reference {
+            argv.extend(["--reference".into(), spp.into()]);
+        }
+        if fallback {
+            argv.push("--fallback".into());
+        }
+        let o = run_glint!(argv);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let own = dir.join("own.exr");
+    render(&material, Some("2048"), false, &own);
+    for (file, what) in [
+        ("shiny.glb", "glTF fallback"),
+        ("shiny.usda", "UsdPreviewSurface fallback"),
+    ] {
+        let (prt, mc) = (
+            dir.join(format!("{file}.prt.exr")),
+            dir.join(format!("{file}.mc.exr")),
+        );
+        let said = render(&to.join(file), None, true, &prt);
+        assert!(said.contains(&format!("PRT of the {what}")), "{said}");
+        let said = render(&to.join(file), Some("2048"), true, &mc);
+        assert!(said.contains(&format!("reference of the {what}")), "{said}");
+        let (prt_vs_mc, n, _) = compare_exr(&prt, &mc);
+        let (mc_vs_own, _, _) = compare_exr(&mc, &own);
+        println!(
+            "{what}: PRT vs reference {:.2} %, reference vs glint's own {:.2} % ({n} pixels)",
+            prt_vs_mc * 100.0,
+            mc_vs_own * 100.0
+        );
+        assert!(n > 300, "{n} pixels");
+        assert!(prt_vs_mc < 0.04, "{what}: PRT vs reference {prt_vs_mc}");
+        assert!(
+            mc_vs_own > 0.02 && mc_vs_own < 0.3,
+            "{what}: vs glint's own {mc_vs_own}"
+        );
+    }
+    let o = run_glint!([
+        "render".as_ref(),
+        bake.as_os_str(),
+        "--material".as_ref(),
+        material.as_os_str(),
+        "--fallback".as_ref(),
+        "--out".as_ref(),
+        dir.join("x.exr").as_os_str()
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.lines().count() == 1 && err.contains("fallback"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

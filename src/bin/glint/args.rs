@@ -61,9 +61,10 @@ pub struct RenderArgs {
     /// lavapipe where there is no GPU) instead of the CPU.
     #[arg(long)]
     pub gpu: bool,
-    /// With --reference: render the fallback the --material export carries instead of glint's BRDF
-    /// (the glTF material of a .glb, the UsdPreviewSurface of a .usda), as other tools show it.
-    #[arg(long, requires = "reference")]
+    /// Render the fallback the --material export carries instead of glint's BRDF (the glTF
+    /// material of a .glb, the UsdPreviewSurface of a .usda), as other tools show it: with the PRT,
+    /// or with --reference the Monte Carlo reference.
+    #[arg(long, conflicts_with = "gpu")]
     pub fallback: bool,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]

@@ -249,7 +249,7 @@ fn samples_dir() -> PathBuf {
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    use glint::render::frame;
+    use glint::{material_file::read_fallback, render::frame};
     let bake = LoadedBake::open(&args.bake)?;
     let material = glint::material_file::read_material(&args.material)?;
     let (camera, w, h) = render_view(
@@ -260,14 +260,17 @@ fn render(args: &RenderArgs) -> Result<()> {
     )?;
     let rotation = args.view.rotate.to_radians();
     let start = std::time::Instant::now();
-    let (mut image, what) = match args.reference {
-        Some(spp) if args.fallback => {
-            let fallback = glint::material_file::read_fallback(&args.material)?;
-            frame::reference_frame_standard(&bake, &fallback, &camera, (w, h), rotation, spp)?
-        }
-        Some(spp) => frame::reference_frame(&bake, &material, &camera, (w, h), rotation, spp)?,
-        None if args.gpu => glint::gpu::preview_frame(&bake, &material, &camera, (w, h), rotation)?,
-        None => frame::prt_frame(&bake, &material, &camera, (w, h), rotation)?,
+    let fallback = args
+        .fallback
+        .then(|| read_fallback(&args.material))
+        .transpose()?;
+    let (c, size, r) = (&camera, (w, h), rotation);
+    let (mut image, what) = match (args.reference, &fallback) {
+        (Some(n), Some(f)) => frame::reference_frame_standard(&bake, f, c, size, r, n)?,
+        (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r)?,
+        (Some(spp), None) => frame::reference_frame(&bake, &material, c, size, r, spp)?,
+        (None, None) if args.gpu => glint::gpu::preview_frame(&bake, &material, c, size, r)?,
+        (None, None) => frame::prt_frame(&bake, &material, c, size, r)?,
     };
     let seconds = start.elapsed().as_secs_f64();
     image.fill_background(&bake.env, rotation, &camera);
