@@ -27,8 +27,8 @@ pub struct OutputFile {
 
 /// A file format glint can write.
 pub trait Exporter: Send + Sync {
-    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `mtlx`, `fallback`, `merl`,
-    /// `mitsuba`.
+    /// Short format name used on the command line: `exr`, `gltf`, `usd`, `mtlx`, `fallback`,
+    /// `merl`, `mitsuba`.
     fn name(&self) -> &'static str;
     /// Extensions of the files it writes (without the dot); the first is the main file's.
     fn extensions(&self) -> &'static [&'static str];

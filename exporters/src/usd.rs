@@ -7,13 +7,20 @@
 //!
 //! ```text
 //! /Root (Xform, defaultPrim, kind = component; stage: upAxis Y, metersPerUnit 1)
-//!   /Root/Looks/<Mat> (Material; customData.glint: provenance, fallback_relative_error, and when the
+//!   /Root/Looks/<Mat> (Material; customData.glint: provenance, fallback_relative_error (the
+//!                      UsdPreviewSurface's), fallback_uniform_relative_error, fallback_weighting,
+//!                      gltf_fallback_relative_error, and when the
 //!                      fallback is anisotropic fallback_anisotropy = {strength, rotation, convention}:
 //!                      UsdPreviewSurface has no anisotropy input, so the KHR_materials_anisotropy
 //!                      values the glTF carries are kept here rather than lost)
 //!     outputs:surface       -> PreviewSurface.outputs:surface
+//!     outputs:mtlx:surface  -> OpenPbrSurface.outputs:out   (render context "mtlx")
 //!     outputs:glint:surface -> GlintDbrdf.outputs:surface   (render context "glint")
-//!     PreviewSurface (Shader, UsdPreviewSurface: diffuseColor, metallic, roughness, useSpecularWorkflow 0)
+//!     PreviewSurface (Shader, UsdPreviewSurface: clearcoat, clearcoatRoughness, diffuseColor,
+//!                     metallic, roughness, useSpecularWorkflow, and specularColor in the specular
+//!                     workflow)
+//!     OpenPbrSurface (Shader, info:id ND_open_pbr_surface_surfaceshader: the inputs of
+//!                     `crate::mtlx::open_pbr_inputs`, for MaterialX-aware renderers)
 //!     GlintDbrdf (Shader with no info:id: data for glint-aware readers and renderers, which no
 //!                 Sdr registry knows; inputs: model, version, conventions, lambda, sigma, layout,
 //!                 isotropic, centres double3[], coefficients_r/g/b double[], rho_d color3d, f0,

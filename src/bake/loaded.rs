@@ -61,7 +61,8 @@ impl LoadedBake {
     }
 
     /// Reads `path` with the scene and environment it was made from already in memory (as
-    /// [`file::bake_or_reuse`] leaves them, having checked their hashes): nothing is imported again.
+    /// [`file::bake_or_reuse`] leaves them, having checked their hashes): nothing is imported
+    /// again.
     pub fn with_inputs(path: &Path, scene: Scene, env: EnvMap) -> Result<Self, LoadBakeError> {
         let (header, cuts, refinement) = file::read(path)?;
         Self::assemble(path, header, cuts, refinement, scene, env)

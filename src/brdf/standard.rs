@@ -1,8 +1,8 @@
 //! The standard materials glint's fallbacks are fitted as, each evaluated as its specification
 //! defines it: glTF 2.0's pbrMetallicRoughness with `KHR_materials_specular`, `_clearcoat`,
 //! `_sheen` and `_anisotropy` ([`GltfParams`]), and UsdPreviewSurface as Storm's reference
-//! implementation evaluates it ([`PreviewParams`]); [`StandardMaterial`] is either with its colours.
-//! The formulas, with their sources, are in docs/fallback.md.
+//! implementation evaluates it ([`PreviewParams`]); [`StandardMaterial`] is either with its
+//! colours. The formulas, with their sources, are in docs/fallback.md.
 //!
 //! Every evaluation works in the local frame (z = shading normal, x = tangent), with wi towards
 //! the light and wo towards the eye, and returns f·cos θi split as A·c + B per channel, where c is

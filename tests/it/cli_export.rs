@@ -1312,7 +1312,8 @@ fn mitsuba_renders_exported_scenes_as_glint_does() {
 /// `glint render --fallback` renders the fallback an export carries: the glTF material of the
 /// `.glb` and the UsdPreviewSurface of the `.usda`, by the PRT and by the Monte Carlo reference,
 /// which agree; the fallback's picture differs from glint's own by about its error, not by nothing
-/// (it is not glint's BRDF drawn again); a material JSON has no fallback and is refused in one line.
+/// (it is not glint's BRDF drawn again); a material JSON has no fallback and is refused in one
+/// line.
 #[test]
 fn render_fallback_draws_the_exported_fallback_by_prt_and_reference() {
     let (dir, bake, material) = fitted("render-fallback");
