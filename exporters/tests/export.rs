@@ -31,7 +31,10 @@ fn small_merl() -> MerlTable {
 #[test]
 fn registry_lists_every_format() {
     let names: Vec<_> = registry().iter().map(|e| e.name()).collect();
-    assert_eq!(names, ["exr", "gltf", "usd", "merl", "mitsuba"]);
+    assert_eq!(
+        names,
+        ["exr", "gltf", "usd", "mtlx", "fallback", "merl", "mitsuba"]
+    );
     for e in registry() {
         assert!(!e.extensions().is_empty());
         assert_eq!(find_exporter(e.name()).unwrap().name(), e.name());
@@ -51,20 +54,37 @@ fn exports_are_deterministic_and_leave_no_temporary_files() {
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
         .collect();
-    assert_eq!(names, ["det_ph.exr", "det.glb", "det.usda", "det.binary"]);
+    assert_eq!(
+        names,
+        [
+            "det_ph.exr",
+            "det.glb",
+            "det.usda",
+            "det.mtlx",
+            "det_fallback.json",
+            "det.binary"
+        ]
+    );
     // Twice into the same folder, and once into another (a fresh process state for the counters).
     export_all(&desc, Some(&mesh), &a, &[]).unwrap();
     export_all(
         &desc.clone(),
         Some(&mesh.clone()),
         &b,
-        &["merl", "usd", "gltf", "exr"],
+        &["merl", "fallback", "usd", "mtlx", "gltf", "exr"],
     )
     .unwrap();
     let (la, lb) = (listing(&a), listing(&b));
     assert_eq!(
         la.keys().collect::<Vec<_>>(),
-        ["det.binary", "det.glb", "det.usda", "det_ph.exr"],
+        [
+            "det.binary",
+            "det.glb",
+            "det.mtlx",
+            "det.usda",
+            "det_fallback.json",
+            "det_ph.exr"
+        ],
         "stray files: {:?}",
         la.keys()
     );
@@ -113,7 +133,7 @@ fn failures_write_nothing_and_say_why_in_one_line() {
     // An unknown format is refused before anything is written, even after a valid one.
     let m = one_line(export_all(&desc, None, &dir, &["exr", "fbx"]).unwrap_err());
     assert!(
-        m.contains("'fbx'") && m.contains("exr, gltf, usd, merl"),
+        m.contains("'fbx'") && m.contains("exr, gltf, usd, mtlx, fallback, merl"),
         "{m}"
     );
     // No MERL table: the MERL exporter refuses, and export_all writes nothing (it builds all

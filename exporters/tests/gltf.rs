@@ -42,9 +42,32 @@ fn glb_carries_the_fallback_and_the_exact_lobe_table() {
         m["extensions"]["KHR_materials_anisotropy"]["anisotropyStrength"],
         0.4
     );
+    // Every layer of the fixture, as its extension defines it; used, never required (a viewer
+    // without them still shows the base).
     assert_eq!(
         json["extensionsUsed"],
-        serde_json::json!(["KHR_materials_anisotropy"])
+        serde_json::json!([
+            "KHR_materials_anisotropy",
+            "KHR_materials_clearcoat",
+            "KHR_materials_sheen",
+            "KHR_materials_specular"
+        ])
+    );
+    let e = &m["extensions"];
+    assert_eq!(e["KHR_materials_clearcoat"]["clearcoatFactor"], 0.6);
+    assert_eq!(
+        e["KHR_materials_clearcoat"]["clearcoatRoughnessFactor"],
+        0.1
+    );
+    assert_eq!(
+        e["KHR_materials_sheen"]["sheenColorFactor"],
+        serde_json::json!([0.2, 0.2, 0.25])
+    );
+    assert_eq!(e["KHR_materials_sheen"]["sheenRoughnessFactor"], 0.4);
+    assert_eq!(e["KHR_materials_specular"]["specularFactor"], 0.8);
+    assert_eq!(
+        e["KHR_materials_specular"]["specularColorFactor"],
+        serde_json::json!([1.5, 1.25, 1.0])
     );
     assert!(json.get("extensionsRequired").is_none());
     let g = &m["extras"]["glint"];
@@ -72,9 +95,12 @@ fn glb_carries_the_fallback_and_the_exact_lobe_table() {
             .all(|(a, b)| ulp(*a, *b))
     );
     assert_eq!(g["provenance"]["tool"], "glint 0.1.0 (test)");
-    // Isotropic fallback: no extension at all.
+    // A one-lobe isotropic fallback: no extension at all.
     let mut iso = desc.clone();
     iso.fallback.anisotropy = None;
+    iso.fallback.specular = None;
+    iso.fallback.clearcoat = None;
+    iso.fallback.sheen = None;
     GltfExporter
         .export(&iso, Some(&scene_mesh()), &dir)
         .unwrap();
