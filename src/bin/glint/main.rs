@@ -296,7 +296,7 @@ fn export(args: &ExportArgs) -> Result<()> {
     if args.list {
         glint_exporters::registry()
             .iter()
-            .for_each(|e| println!("{:<6} {}", e.name(), e.extensions().join(", ")));
+            .for_each(|e| println!("{:<9} {}", e.name(), e.extensions().join(", ")));
         return Ok(());
     }
     let (Some(material_path), Some(to)) = (&args.material, &args.to) else {
