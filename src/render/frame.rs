@@ -118,11 +118,7 @@ pub fn reference_frame(
     rotation_rad: f64,
     spp: u32,
 ) -> Result<(Image, String), FrameError> {
-    if spp == 0 {
-        return Err(FrameError::NoSamples);
-    }
     let lobes = material_lobes(bake, material)?;
-    let tracer = Tracer::new(&bake.scene.mesh);
     let c = &material.coefficients;
     let m = ExactMaterial {
         lobes: &lobes,
@@ -130,20 +126,22 @@ pub fn reference_frame(
         rho_d: material.rho_d,
         f0: material.f0,
     };
-    let img = render_reference(
-        &bake.scene.mesh,
-        bake.tangents.as_deref(),
-        &tracer,
-        ray_offset(bake),
-        &bake.env,
-        rotation_rad,
-        m,
-        camera,
-        w,
-        h,
-        spp,
-        1,
-    );
+    let img = with_reference_scene(bake, rotation_rad, spp, |s| {
+        render_reference(
+            s.mesh,
+            s.tangents,
+            s.tracer,
+            s.ray_offset,
+            s.env,
+            s.rotation_rad,
+            m,
+            camera,
+            w,
+            h,
+            spp,
+            1,
+        )
+    })?;
     Ok((img, format!("Monte Carlo reference, {spp} spp")))
 }
 
@@ -158,22 +156,34 @@ pub fn reference_frame_standard(
     rotation_rad: f64,
     spp: u32,
 ) -> Result<(Image, String), FrameError> {
+    let img = with_reference_scene(bake, rotation_rad, spp, |s| {
+        super::render_reference_standard(s, material, camera, (w, h), spp, 1)
+    })?;
+    let what = standard_name(material);
+    Ok((
+        img,
+        format!("Monte Carlo reference of the {what}, {spp} spp"),
+    ))
+}
+
+/// Renders with the bake's reference scene (mesh, tangents, a tracer, the shadow rays' offset, the
+/// environment at `rotation_rad`); at least one sample per pixel.
+fn with_reference_scene(
+    bake: &LoadedBake,
+    rotation_rad: f64,
+    spp: u32,
+    render: impl FnOnce(&super::ReferenceScene) -> Image,
+) -> Result<Image, FrameError> {
     if spp == 0 {
         return Err(FrameError::NoSamples);
     }
     let tracer = Tracer::new(&bake.scene.mesh);
-    let scene = super::ReferenceScene {
+    Ok(render(&super::ReferenceScene {
         mesh: &bake.scene.mesh,
         tangents: bake.tangents.as_deref(),
         tracer: &tracer,
         ray_offset: ray_offset(bake),
         env: &bake.env,
         rotation_rad,
-    };
-    let img = super::render_reference_standard(&scene, material, camera, (w, h), spp, 1);
-    let what = standard_name(material);
-    Ok((
-        img,
-        format!("Monte Carlo reference of the {what}, {spp} spp"),
-    ))
+    }))
 }

@@ -35,7 +35,8 @@
 //! ranges) and interpolates the normal and tangent, as the transfer does per pixel.
 //!
 //! Inputs: mesh, cuts, light tree, tangents (or none), [`LightSums`] for the rotation, the eye, the
-//! material's ρd and F0, and p as a table or as the exact lobe sum. Output: RGB radiance per
+//! material's ρd and F0, and p as a table or as the exact lobe sum — or a standard material (an
+//! exported fallback, [`Specular::Standard`]) evaluated whole per light run. Output: RGB radiance per
 //! shading point, and an [`Image`] with per-pixel interpolation (perspective-correct barycentrics
 //! from [`crate::raster`]).
 //!

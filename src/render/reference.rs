@@ -14,8 +14,9 @@
 //!   lobes themselves for p: a lobe picked ∝ its coefficient, h drawn from its von Mises–Fisher
 //!   density exp(2λ(h·ξ − 1))).
 //!
-//! Inputs: the scene's mesh and tangents, a [`Tracer`], the environment and rotation, the material,
-//! a camera, a size, samples per pixel and a seed. Output: an [`Image`] (object pixels only).
+//! Inputs: the scene's mesh and tangents, a [`Tracer`], the environment and rotation, the material
+//! (glint's exact lobes, or a standard material — an exported fallback — sampled by the cosine and
+//! its GGX lobes: [`render_reference_standard`]), a camera, a size, samples per pixel and a seed. Output: an [`Image`] (object pixels only).
 //! Invariants: each pixel has its own random stream seeded from (seed, pixel), so the image does
 //! not depend on the thread count; f64 accumulation; no IO.
 
