@@ -1,13 +1,21 @@
-//! Bake and transfer benchmarks: `cargo bench --bench bake --no-default-features`.
+//! Bake, transfer and energy-table benchmarks: `cargo bench --bench bake --no-default-features [--
+//! SECTION…]`, sections `energy`, `matrix`, `view` (default: all).
 //!
-//! Inputs: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings (decisions
-//! made and the mesh refined, as `glint bake` does). Prints, per run (two runs, so the second shows
-//! warm caches): the bake's seconds (decisions and refinement included), rays and the refined
-//! vertex count; then, for the isotropic J = 24 lobe set at σ = π/40, the light sums (from scratch,
-//! and from a kept `LightSource` as the app makes them) and the transfer at 160×120 from the
-//! default camera for two rotations of the environment — what a new view or a rotated light costs:
-//! the median of 5 computes with the fastest and slowest (one compute is ~45 ms, so a single one
-//! reads the machine's noise as much as the code).
+//! - `energy`: the energy table of the paper's layout (hemicube-7, J = 147, σ = π/40, 257 × 147
+//!   entries) and the isotropic J = 24 set: integrated entry by entry (each (row, lobe) pair on its
+//!   own, as the table used to be built) and as the table builds it now (each distinct geometry
+//!   once), then read back from the disk cache; median of 3 each, side by side in one run.
+//! - `matrix`: `glint bake`'s default bake (decisions, refinement) of each of bunny, teapot,
+//!   suzanne, dragon.glb and dragon_100k under each of studio_1k, courtyard_1k and interior_1k:
+//!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices.
+//! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
+//!   per run (two runs, so the second shows warm caches): the bake's seconds (decisions and
+//!   refinement included), rays and the refined vertex count; then, for the isotropic J = 24 lobe
+//!   set at σ = π/40, the light sums (from scratch, and from a kept `LightSource` as the app makes
+//!   them) and the transfer at 160×120 from the default camera for two rotations of the
+//!   environment — what a new view or a rotated light costs: the median of 5 computes with the
+//!   fastest and slowest (one compute is ~45 ms, so a single one reads the machine's noise as much
+//!   as the code).
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -18,6 +26,113 @@ use std::time::Instant;
 mod common;
 
 fn main() {
+    let sections: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
+    let wants = |name: &str| sections.is_empty() || sections.iter().any(|s| s == name);
+    if wants("energy") {
+        energy();
+    }
+    if wants("matrix") {
+        matrix();
+    }
+    if wants("view") {
+        view();
+    }
+}
+
+/// Median of `n` timed runs of `f` (seconds), and the last result.
+fn median_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut times = Vec::with_capacity(n);
+    let mut last = None;
+    for _ in 0..n {
+        let t = Instant::now();
+        last = Some(std::hint::black_box(f()));
+        times.push(t.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    (times[n / 2], last.expect("n ≥ 1"))
+}
+
+fn energy() {
+    use glint::brdf::energy::{
+        EnergyQuadrature, EnergyTable, default_outgoing, lobe_set_albedo_parts,
+    };
+    use glint::math::GaussLegendre;
+    use rayon::prelude::*;
+    let lambda = srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap();
+    let cache = std::env::temp_dir().join(format!("glint-bench-energy-{}", std::process::id()));
+    println!(
+        "| lobes | entries | entry by entry (s) | distinct geometries once (s) | from the disk cache (s) | largest difference |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for layout in [LobeLayout::PAPER, LobeLayout::Isotropic { count: 24 }] {
+        let lobes = LobeSet::new(layout, lambda).unwrap();
+        let outgoing = default_outgoing(&lobes);
+        let quad = EnergyQuadrature::default();
+        let rule = GaussLegendre::new(quad.radial_points);
+        let (plain_secs, plain) = median_of(3, || {
+            outgoing
+                .par_iter()
+                .map(|&wo| {
+                    (0..lobes.len())
+                        .map(|j| lobe_set_albedo_parts(&lobes, j, wo, &quad, &rule))
+                        .collect::<Vec<_>>()
+                })
+                .collect::<Vec<_>>()
+        });
+        let (table_secs, table) = median_of(3, || EnergyTable::new(&lobes, &outgoing, &quad));
+        let _ = std::fs::remove_dir_all(&cache);
+        glint::fit::energy_cache::table_in(&lobes, Some(&cache));
+        let (disk_secs, disk) = median_of(3, || glint::fit::energy_cache::load(&lobes, &cache));
+        assert_eq!(disk.expect("cached").parts(), table.parts());
+        let largest = plain
+            .iter()
+            .flatten()
+            .enumerate()
+            .map(|(k, &(a, b))| {
+                let want = 0.04 * a + b;
+                (table.entry(k / lobes.len(), k % lobes.len(), 0.04) - want).abs() / want.max(1e-12)
+            })
+            .fold(0.0f64, f64::max);
+        println!(
+            "| {} | {} × {} | {plain_secs:.3} | {table_secs:.3} | {disk_secs:.4} | {largest:.1e} |",
+            layout.name(),
+            table.rows(),
+            table.cols()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&cache);
+}
+
+fn matrix() {
+    println!(
+        "| mesh | map | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for mesh in ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"] {
+        let scene =
+            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        for map in ["studio_1k", "courtyard_1k", "interior_1k"] {
+            let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+            let (secs, stats) = median_of(3, || {
+                let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+                baker.bake_refined(None, &|_| {}).stats
+            });
+            println!(
+                "| {mesh} | {map} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
+                stats.decision_seconds,
+                scene.mesh.positions.len(),
+                stats.vertices,
+                stats.rays_traced as f64 / 1e6,
+                stats.rays_traced as f64 / (stats.seconds - stats.decision_seconds).max(1e-9) / 1e6,
+            );
+        }
+    }
+}
+
+fn view() {
     let scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
     let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr")).unwrap();
     let lobes = LobeSet::new(

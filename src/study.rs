@@ -21,7 +21,6 @@
 //! fit.
 
 use crate::bake::{Bake, BakeSettings, Baker, Tracer};
-use crate::brdf::EnergyTable;
 use crate::env::EnvMap;
 use crate::fit::material::Material;
 use crate::fit::run::{Baked, FitSettings, camera_for, default_layout, fit};
@@ -57,7 +56,7 @@ pub struct StudyRow {
     /// The fit with the energy rows of its lobe set already integrated.
     pub fit_secs: f64,
     /// Integrating the energy rows of the row's lobe set (J, σ): once per lobe set and session
-    /// ([`crate::brdf::EnergyTable::cached`]), so not in [`StudyRow::total_secs`]; rows sharing a
+    /// ([`crate::fit::energy_cache::table`]), so not in [`StudyRow::total_secs`]; rows sharing a
     /// lobe set show the same figure.
     pub energy_table_secs: f64,
     pub frame_secs: f64,
@@ -480,7 +479,7 @@ pub fn run(
         let table_key = format!("{:?}/{}", row_lobes.layout(), k.sigma);
         let energy_table_secs = *tables.entry(table_key).or_insert_with(|| {
             let t0 = Instant::now();
-            std::hint::black_box(EnergyTable::cached(&row_lobes));
+            std::hint::black_box(crate::fit::energy_cache::table(&row_lobes));
             t0.elapsed().as_secs_f64()
         });
         if !fits.contains_key(&fit_key) {

@@ -66,15 +66,7 @@ pub enum BakeFileError {
     Write(#[from] glint_exporters::AtomicWriteError),
 }
 
-/// FNV-1a, 64 bit.
-pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
+pub use crate::math::fnv1a64;
 
 /// Hex FNV-1a of a file's bytes.
 pub fn hash_file(path: &Path) -> Result<String, BakeFileError> {

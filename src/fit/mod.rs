@@ -8,16 +8,20 @@
 //! - [`session`]: the fitting context (cached lobes, transfers and warm start) the CLI and the app
 //!   share.
 //! - [`run`]: a whole fit from a bake and a stroke file, in a fresh session.
+//! - [`energy_cache`]: the energy rows a fit needs, kept in memory and in a disk cache under a
+//!   content hash.
 //! - [`cost`]: what a fit in one view costs after the bake (`glint bake` reports it).
 //! - [`dump`]: a fit's problem and solution as `.npy` files (`glint fit --dump-qp`).
 //! - [`qp`]: an exact, warm-started dual active-set solver (Goldfarb–Idnani) for
 //!   min ½cᵀHc + qᵀc subject to c ≥ 0 and Gc ≤ u.
 //!
-//! Invariants: no IO except parsing stroke text handed in by the caller and [`dump`]'s files; knows
+//! Invariants: no IO except parsing stroke text handed in by the caller, [`dump`]'s files and
+//! [`energy_cache`]'s folder; knows
 //! no wgpu; f64.
 
 pub mod cost;
 pub mod dump;
+pub mod energy_cache;
 pub mod material;
 pub mod problem;
 pub mod qp;

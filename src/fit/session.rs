@@ -135,7 +135,7 @@ impl FitSession {
         Ok(Some(
             cache
                 .energy
-                .get_or_insert_with(|| EnergyTable::cached(&cache.lobes))
+                .get_or_insert_with(|| super::energy_cache::table(&cache.lobes))
                 .clone(),
         ))
     }

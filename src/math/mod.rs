@@ -1,6 +1,6 @@
 //! Small numeric building blocks shared by every stage: Gauss–Legendre quadrature, the
 //! exponentially scaled Bessel function I0e (for azimuthally averaged lobes), compensated sums and
-//! a deterministic PRNG.
+//! a deterministic PRNG and a content hash.
 //!
 //! Inputs: plain numbers. Outputs: plain numbers. Invariants: everything here is pure (no IO, no
 //! global state) and f64; every function is finite for every finite input in its documented domain.
@@ -28,6 +28,17 @@ pub fn compensated_sum(values: impl IntoIterator<Item = f64>) -> f64 {
         sum = t;
     }
     sum + compensation
+}
+
+/// FNV-1a, 64 bit: the content hash of bake inputs and cached tables (not cryptographic; a cache
+/// also checks what it reads back).
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
 }
 
 #[cfg(test)]

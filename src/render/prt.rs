@@ -36,9 +36,9 @@
 //!
 //! Inputs: mesh, cuts, light tree, tangents (or none), [`LightSums`] for the rotation, the eye, the
 //! material's ρd and F0, and p as a table or as the exact lobe sum — or a standard material (an
-//! exported fallback, [`Specular::Standard`]) evaluated whole per light run. Output: RGB radiance per
-//! shading point, and an [`Image`] with per-pixel interpolation (perspective-correct barycentrics
-//! from [`crate::raster`]).
+//! exported fallback, [`Specular::Standard`]) evaluated whole per light run. Output: RGB radiance
+//! per shading point, and an [`Image`] with per-pixel interpolation (perspective-correct
+//! barycentrics from [`crate::raster`]).
 //!
 //! Invariants: no ray tracing and no IO; vertices are independent (rayon), so results do not depend
 //! on the thread count; f64 sums.

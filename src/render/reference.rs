@@ -16,9 +16,10 @@
 //!
 //! Inputs: the scene's mesh and tangents, a [`Tracer`], the environment and rotation, the material
 //! (glint's exact lobes, or a standard material — an exported fallback — sampled by the cosine and
-//! its GGX lobes: [`render_reference_standard`]), a camera, a size, samples per pixel and a seed. Output: an [`Image`] (object pixels only).
-//! Invariants: each pixel has its own random stream seeded from (seed, pixel), so the image does
-//! not depend on the thread count; f64 accumulation; no IO.
+//! its GGX lobes: [`render_reference_standard`]), a camera, a size, samples per pixel and a seed.
+//! Output: an [`Image`] (object pixels only). Invariants: each pixel has its own random stream
+//! seeded from (seed, pixel), so the image does not depend on the thread count; f64 accumulation;
+//! no IO.
 
 use super::image::Image;
 use crate::bake::tracer::Tracer;

@@ -295,9 +295,8 @@ fn replay_screenshot_writes_the_app_after_the_fit() {
     let dir = std::env::temp_dir().join(format!("glint-app-replay-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("app.png");
-    let exe = env!("CARGO_BIN_EXE_glint");
     let root = env!("CARGO_MANIFEST_DIR");
-    let o = std::process::Command::new(exe)
+    let o = crate::glint_command!()
         .current_dir(root)
         .args([
             "app",
@@ -326,7 +325,7 @@ fn replay_screenshot_writes_the_app_after_the_fit() {
     let distinct: std::collections::HashSet<[u8; 3]> = img.pixels().map(|p| p.0).collect();
     assert!(distinct.len() > 500, "{} distinct colours", distinct.len());
     // Bad input: one line, non-zero exit, no panic.
-    let o = std::process::Command::new(exe)
+    let o = crate::glint_command!()
         .current_dir(root)
         .args(["app", "no-such.glb", "--screenshot"])
         .arg(&out)

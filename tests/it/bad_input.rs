@@ -620,7 +620,8 @@ fn glint_limited(args: &[&std::ffi::OsStr]) -> Output {
             .arg(format!(
                 "ulimit -v {MEMORY_LIMIT_KIB} && exec \"$0\" \"$@\""
             ))
-            .arg(exe);
+            .arg(exe)
+            .env("GLINT_CACHE_DIR", crate::common::energy_cache_dir());
         c
     } else {
         Command::new(exe)

@@ -4,14 +4,13 @@
 //! DWAB EXRs' clamped texels, and the JSON keys other tools rely on.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets")
 }
 
 fn glint(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_glint"))
+    crate::glint_command!()
         .args(args)
         .output()
         .expect("run glint")

@@ -5,13 +5,11 @@
 
 use crate::common;
 
-use std::process::Command;
-
 #[test]
 fn quick_study_writes_csv_svg_and_markdown() {
     let dir = common::temp_dir("study");
     let root = env!("CARGO_MANIFEST_DIR");
-    let out = Command::new(env!("CARGO_BIN_EXE_glint"))
+    let out = crate::glint_command!()
         .current_dir(root)
         .args(["study", "--quick", "--out"])
         .arg(&dir)
@@ -130,7 +128,7 @@ fn quick_study_writes_csv_svg_and_markdown() {
 fn quick_accuracy_matrix() {
     let dir = common::temp_dir("matrix");
     let root = env!("CARGO_MANIFEST_DIR");
-    let out = Command::new(env!("CARGO_BIN_EXE_glint"))
+    let out = crate::glint_command!()
         .current_dir(root)
         .args(["study", "--matrix", "--quick", "--out"])
         .arg(&dir)

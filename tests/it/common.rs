@@ -177,11 +177,28 @@ pub fn qp_objective(h: &[f64], q: &[f64], c: &[f64], n: usize) -> f64 {
 #[macro_export]
 macro_rules! run_glint {
     ($args:expr) => {
-        std::process::Command::new(env!("CARGO_BIN_EXE_glint"))
+        $crate::glint_command!()
             .args($args)
             .output()
             .expect("run glint")
     };
+}
+
+/// A command for the built `glint` binary, its energy-table cache in a folder of this test process
+/// (not the user's cache; `GLINT_CACHE_DIR`). A macro, as `env!` would not build in the benches
+/// that share this file.
+#[macro_export]
+macro_rules! glint_command {
+    () => {{
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_glint"));
+        cmd.env("GLINT_CACHE_DIR", $crate::common::energy_cache_dir());
+        cmd
+    }};
+}
+
+/// The energy-table cache folder the tests' `glint` processes share.
+pub fn energy_cache_dir() -> PathBuf {
+    std::env::temp_dir().join(format!("glint-it-energy-cache-{}", std::process::id()))
 }
 
 /// A fresh, empty temporary folder named for the test, the process and a per-process counter (the

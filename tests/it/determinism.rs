@@ -13,7 +13,6 @@
 use crate::common;
 
 use std::path::Path;
-use std::process::Command;
 
 use serde_json::Value;
 
@@ -21,7 +20,7 @@ const TIMINGS_BAKE: [&str; 2] = ["seconds", "decision_seconds"];
 const TIMING_MATERIAL: &str = "solve_seconds";
 
 fn glint(threads: usize, args: &[&str]) {
-    let o = Command::new(env!("CARGO_BIN_EXE_glint"))
+    let o = crate::glint_command!()
         .args(args)
         .env("RAYON_NUM_THREADS", threads.to_string())
         .output()

@@ -368,7 +368,7 @@ pub fn one_sharp_lobe() -> glint::fit::material::Material {
     .unwrap();
     let mut c = vec![0.0; lobes.len()];
     c[0] = 1.0;
-    let albedo = glint::brdf::energy::EnergyTable::cached(&lobes)
+    let albedo = glint::fit::energy_cache::table(&lobes)
         .albedo(&c, 0.04)
         .into_iter()
         .fold(0.0, f64::max);

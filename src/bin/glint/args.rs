@@ -359,3 +359,16 @@ impl ExportArgs {
         }
     }
 }
+
+/// The energy tables' disk cache ([`glint::fit::energy_cache`]): `GLINT_CACHE_DIR` (empty turns
+/// the cache off), else `$XDG_CACHE_HOME/glint`, else `$HOME/.cache/glint`.
+pub fn energy_cache_dir() -> Option<PathBuf> {
+    let var = |name| std::env::var_os(name).filter(|v| !v.is_empty());
+    match std::env::var_os("GLINT_CACHE_DIR") {
+        Some(dir) if dir.is_empty() => None,
+        Some(dir) => Some(PathBuf::from(dir)),
+        None => var("XDG_CACHE_HOME")
+            .map(|d| PathBuf::from(d).join("glint"))
+            .or_else(|| var("HOME").map(|h| PathBuf::from(h).join(".cache").join("glint"))),
+    }
+}

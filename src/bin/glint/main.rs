@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    glint::fit::energy_cache::set_dir(energy_cache_dir());
     let result = match Cli::parse().command {
         Some(Command::Inspect { scene, env, json }) => inspect(&scene, env.as_deref(), json),
         None => default_job(),
