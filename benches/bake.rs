@@ -34,6 +34,9 @@ fn main() {
     if wants("energy") {
         energy();
     }
+    if wants("rays") {
+        rays();
+    }
     if wants("matrix") {
         matrix();
     }
@@ -104,6 +107,72 @@ fn energy() {
         );
     }
     let _ = std::fs::remove_dir_all(&cache);
+}
+
+/// Occlusion rays as the bake casts them (from each vertex, offset 1e-4 of the diagonal along its
+/// normal, towards directions above its tangent plane), through tracers built with different
+/// parameters, side by side.
+fn rays() {
+    use glam::{Vec3, Vec3A};
+    use glint::bake::tracer::{BvhBuildParams, Tracer};
+    use rayon::prelude::*;
+    // 2,048 directions: a Fibonacci sphere.
+    let dirs: Vec<Vec3A> = (0..2048)
+        .map(|k| {
+            let z = 1.0 - (2.0 * k as f32 + 1.0) / 2048.0;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = k as f32 * 2.399_963;
+            Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect();
+    println!(
+        "| mesh | triangles | tracer (obvhs CWBVH build) | build (s) | rays | trace (s), median of 3 | M rays/s | occluded |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for mesh in ["bunny", "dragon", "dragon_100k"] {
+        let scene =
+            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let m = &scene.mesh;
+        let offset = 1e-4 * (scene.bounds.max - scene.bounds.min).length();
+        let step = (m.positions.len() / 1000).max(1);
+        let origins: Vec<(Vec3A, Vec3A)> = (0..m.positions.len())
+            .step_by(step)
+            .map(|i| {
+                let n: Vec3 = m.normals[i];
+                ((m.positions[i] + n * offset).into(), n.into())
+            })
+            .collect();
+        let rays: usize = origins
+            .iter()
+            .map(|(_, n)| dirs.iter().filter(|d| d.dot(*n) > 0.0).count())
+            .sum();
+        for (name, params) in [
+            ("fast (the default)", BvhBuildParams::fast_build()),
+            ("medium", BvhBuildParams::medium_build()),
+            ("slow", BvhBuildParams::slow_build()),
+        ] {
+            let t = Instant::now();
+            let tracer = Tracer::with_params(m, params);
+            let build = t.elapsed().as_secs_f64();
+            let (secs, hits) = median_of(3, || {
+                origins
+                    .par_iter()
+                    .map(|&(o, n)| {
+                        dirs.iter()
+                            .filter(|d| d.dot(n) > 0.0 && tracer.occluded(o, **d))
+                            .count()
+                    })
+                    .sum::<usize>()
+            });
+            println!(
+                "| {mesh} | {} | {name} | {build:.3} | {:.2} M | {secs:.3} | {:.2} | {:.1} % |",
+                m.triangles.len(),
+                rays as f64 / 1e6,
+                rays as f64 / secs / 1e6,
+                100.0 * hits as f64 / rays as f64
+            );
+        }
+    }
 }
 
 fn matrix() {

@@ -384,6 +384,32 @@ impl Engine {
         Ok(start.elapsed().as_secs_f64())
     }
 
+    /// The view in clay — grey, lit from the eye, 0.1 + 0.4·|n·v| — from the mesh alone: what the
+    /// viewport shows, and what can be painted on, before the first view's vertices are baked.
+    pub fn render_clay(&self, view: &ViewSpec, size: [u32; 2]) -> Result<Image, AppError> {
+        let camera = self.camera(view, size)?;
+        let mesh = &self.scene.mesh;
+        let eye = camera.eye();
+        let mut image = Image::new(size[0], size[1]);
+        for f in crate::raster::rasterize(mesh, &camera, size[0], size[1]) {
+            let corners = mesh.triangles[f.triangle as usize].map(|v| v as usize);
+            let (mut p, mut n) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
+            for (&v, &b) in corners.iter().zip(&f.bary) {
+                p += mesh.positions[v] * b;
+                n += mesh.normals[v] * b;
+            }
+            let shade = 0.1
+                + 0.4
+                    * n.normalize_or_zero()
+                        .dot((eye - p).normalize_or_zero())
+                        .abs();
+            let i = f.y as usize * size[0] as usize + f.x as usize;
+            image.pixels[i] = [shade; 3];
+            image.covered[i] = true;
+        }
+        Ok(image)
+    }
+
     /// A preview frame of the current material in a view (the wgpu preview or the CPU PRT frame,
     /// see [`PreviewChoice`]; both shade the mesh's vertices and interpolate).
     pub fn render(

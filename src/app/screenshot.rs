@@ -15,11 +15,27 @@ use std::time::{Duration, Instant};
 /// What a replay measured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReplayReport {
+    pub painting_possible_secs: f64,
     pub first_fit_possible_secs: f64,
     pub first_fit_ready_secs: f64,
     pub release_to_preview_secs: f64,
     pub width_px: u32,
     pub height_px: u32,
+}
+
+impl std::fmt::Display for ReplayReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "({}x{} px); after launch: painting possible {:.2} s, first view baked {:.2} s, first fit prepared {:.2} s; stroke release → preview {:.3} s",
+            self.width_px,
+            self.height_px,
+            self.painting_possible_secs,
+            self.first_fit_possible_secs,
+            self.first_fit_ready_secs,
+            self.release_to_preview_secs
+        )
+    }
 }
 
 /// egui drawn into an offscreen texture.
@@ -217,6 +233,7 @@ pub fn replay_screenshot(
         reason: e.to_string(),
     })?;
     Ok(ReplayReport {
+        painting_possible_secs: app.painting_possible_secs().unwrap_or(f64::NAN),
         first_fit_possible_secs: app.first_fit_possible_secs().unwrap_or(f64::NAN),
         first_fit_ready_secs: app.first_fit_ready_secs().unwrap_or(f64::NAN),
         release_to_preview_secs: app

@@ -4,8 +4,8 @@
 //!
 //! Inputs: egui input, [`super::worker::Event`]s. Outputs: [`super::worker::Command`]s, autosaved
 //! sessions, what egui draws. Invariants: the UI thread only sends commands and uploads finished
-//! images (never bakes, fits or shades); painting starts only once the first view's vertices are
-//! baked; a stroke's points are pixels of the view's full-resolution image (origin top-left),
+//! images (never bakes, fits or shades); painting starts once the first view is drawn (in clay,
+//! before the bake; a stroke's fit waits for the first view's vertices to be baked); a stroke's points are pixels of the view's full-resolution image (origin top-left),
 //! mapped from the widget rectangle the image is drawn in; every settled edit (stroke released,
 //! slider let go, undo, redo, session loaded) is one history step and one fit.
 
@@ -111,6 +111,9 @@ pub struct GlintApp {
     view: Option<ViewSpec>,
     orbit: [f32; 3],
     ready: bool,
+    /// The first view is drawn (in clay before the bake): painting works.
+    paintable: bool,
+    painting_possible_secs: Option<f64>,
     bake_complete: Option<f64>,
     first_fit_possible_secs: Option<f64>,
     first_fit_ready_secs: Option<f64>,
@@ -197,6 +200,8 @@ impl GlintApp {
             orbit: [0.0, 0.0, 3.0],
             ready: false,
             bake_complete: None,
+            paintable: false,
+            painting_possible_secs: None,
             first_fit_possible_secs: None,
             first_fit_ready_secs: None,
             progress: (0, 0, ""),
@@ -216,9 +221,19 @@ impl GlintApp {
         }
     }
 
-    /// True once the first view's vertices are baked (painting works).
+    /// True once the first view's vertices are baked (fitting works).
     pub fn ready(&self) -> bool {
         self.ready
+    }
+
+    /// True once the first view is drawn, in clay before the bake (painting works).
+    pub fn paintable(&self) -> bool {
+        self.paintable
+    }
+
+    /// Seconds from launch to painting being possible.
+    pub fn painting_possible_secs(&self) -> Option<f64> {
+        self.painting_possible_secs
     }
 
     /// True once every vertex is baked.
@@ -432,11 +447,19 @@ impl GlintApp {
                     });
                 }
                 Event::Progress { done, total, phase } => self.progress = (done, total, phase),
+                Event::Paintable { secs_since_start } => {
+                    self.paintable = true;
+                    self.painting_possible_secs = Some(secs_since_start);
+                    self.note(format!("painting possible {secs_since_start:.2} s after launch (the view in clay until its vertices are baked)"));
+                }
+                Event::Note(text) => self.note(text),
                 Event::FirstViewReady {
                     secs_since_start,
                     vertices,
                 } => {
                     self.ready = true;
+                    self.paintable = true;
+                    self.painting_possible_secs.get_or_insert(secs_since_start);
                     self.first_fit_possible_secs = Some(secs_since_start);
                     self.note(format!("first fit possible {secs_since_start:.2} s after launch ({vertices} vertices of the first view baked)"));
                     self.request_frame();
@@ -464,7 +487,11 @@ impl GlintApp {
                     self.request_frame();
                 }
                 Event::Frame { view, image } => {
-                    if Some(&view) == self.view.as_ref() && self.pending_fit.is_none() {
+                    // While a fit is under way its own frame replaces this one; before the bake a
+                    // fit only waits, so the clay frames of a new view are shown.
+                    if Some(&view) == self.view.as_ref()
+                        && (self.pending_fit.is_none() || !self.ready)
+                    {
                         self.show_frame(ctx, image);
                     }
                 }
@@ -597,13 +624,24 @@ impl GlintApp {
             let text = if self.loaded.is_none() {
                 "loading the scene and the environment…".to_string()
             } else {
-                format!("baking the {phase}: {done} / {total} vertices")
+                format!(
+                    "baking the {phase}: {done} / {total} vertices — paint now, the fit follows"
+                )
+            };
+            // Centred while there is nothing to see; at the top once the clay view is drawn.
+            let (at, align) = if self.preview.is_some() {
+                (
+                    rect.center_top() + Vec2::new(0.0, 12.0),
+                    egui::Align2::CENTER_TOP,
+                )
+            } else {
+                (rect.center(), egui::Align2::CENTER_CENTER)
             };
             painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
+                at,
+                align,
                 text,
-                egui::FontId::proportional(18.0),
+                egui::FontId::proportional(16.0),
                 Color32::WHITE,
             );
         }
@@ -654,7 +692,7 @@ impl GlintApp {
             );
         }
         // Left-drag paints.
-        if self.ready {
+        if self.paintable {
             if response.drag_started_by(egui::PointerButton::Primary) {
                 self.stroke = Some(Vec::new());
             }
@@ -892,8 +930,11 @@ impl GlintApp {
                 ui.label("fitting…");
             });
         }
-        if let Some(secs) = self.first_fit_possible_secs {
+        if let Some(secs) = self.painting_possible_secs {
             ui.label(format!("painting possible {secs:.2} s after launch"));
+        }
+        if let Some(secs) = self.first_fit_possible_secs {
+            ui.label(format!("first view baked {secs:.2} s after launch"));
         }
         if let Some(secs) = self.first_fit_ready_secs {
             ui.label(format!("first fit prepared {secs:.2} s after launch"));

@@ -65,7 +65,10 @@ pub enum Event {
         total: usize,
         phase: &'static str,
     },
-    /// The first view's vertices are baked: painting and fitting work from now on.
+    /// The first view is drawn in clay ([`Engine::render_clay`]): painting works from now on (the
+    /// fit waits for the first view's bake).
+    Paintable { secs_since_start: f64 },
+    /// The first view's vertices are baked: fitting works from now on.
     FirstViewReady {
         secs_since_start: f64,
         vertices: usize,
@@ -92,6 +95,8 @@ pub enum Event {
     Exported(Vec<PathBuf>),
     /// The environment changed (its path).
     EnvChanged(PathBuf),
+    /// Something to tell the user (one line).
+    Note(String),
     /// Something went wrong (one line).
     Error(String),
 }
@@ -227,6 +232,19 @@ fn run(
         device: engine.device(),
         anisotropic: decisions.anisotropic,
     });
+    // Something to paint on before the bake: the first view in clay.
+    match engine.render_clay(&first_view, size) {
+        Ok(image) => {
+            send(Event::Frame {
+                view: first_view.clone(),
+                image: Arc::new(image),
+            });
+            send(Event::Paintable {
+                secs_since_start: start.elapsed().as_secs_f64(),
+            });
+        }
+        Err(e) => send(Event::Error(e.to_string())),
+    }
     // First fit fast: the vertices the first view sees (at its size and at the fit size), then the
     // rest.
     let camera = engine.camera(&first_view, size)?;
@@ -317,7 +335,7 @@ fn serve(
             m
         } else {
             match prepare.take() {
-                Some(doc) => match rx.recv_timeout(std::time::Duration::from_millis(30)) {
+                Some(doc) => match recv_idle(rx, send, std::time::Duration::from_millis(30)) {
                     Ok(m) => {
                         prepare = Some(doc);
                         m
@@ -355,17 +373,19 @@ fn serve(
                     size,
                     rotation_deg,
                 }) => {
-                    if first_ready {
-                        match engine.render(&view, size, rotation_deg) {
-                            Ok(image) => {
-                                still = Some((view.clone(), size, rotation_deg));
-                                send(Event::Frame {
-                                    view,
-                                    image: Arc::new(image),
-                                })
-                            }
-                            Err(e) => send(Event::Error(e.to_string())),
-                        }
+                    let frame = if first_ready {
+                        engine.render(&view, size, rotation_deg).inspect(|_| {
+                            still = Some((view.clone(), size, rotation_deg));
+                        })
+                    } else {
+                        engine.render_clay(&view, size)
+                    };
+                    match frame {
+                        Ok(image) => send(Event::Frame {
+                            view,
+                            image: Arc::new(image),
+                        }),
+                        Err(e) => send(Event::Error(e.to_string())),
                     }
                 }
                 Msg::Cmd(cmd @ Command::Fit { .. }) => {
@@ -374,7 +394,10 @@ fn serve(
                     };
                     let needs_all = doc.views.iter().any(|v| !is_first(&v.view));
                     if !first_ready || (needs_all && !complete) {
-                        send(Event::Error("the fit waits for the bake of this view's vertices (see the progress bar)".into()));
+                        send(Event::Note(
+                            "the fit runs once this view's vertices are baked (see the progress)"
+                                .into(),
+                        ));
                         waiting_fit = Some(cmd);
                     } else {
                         still = fit(engine, cmd, send).or(still);
@@ -430,6 +453,23 @@ fn serve(
                 }
                 Msg::Failed(e) => send(Event::Error(format!("the bake failed: {e}"))),
             }
+        }
+    }
+}
+
+/// The next message, or `Timeout` once `idle` passes without one. The bake's progress, which arrives
+/// every few ms while the rest of the mesh is baked, is passed on and does not count: it would
+/// otherwise postpone whatever waits for the worker to be idle until the bake ends.
+fn recv_idle(
+    rx: &Receiver<Msg>,
+    send: &dyn Fn(Event),
+    idle: std::time::Duration,
+) -> Result<Msg, std::sync::mpsc::RecvTimeoutError> {
+    let deadline = Instant::now() + idle;
+    loop {
+        match rx.recv_timeout(deadline.saturating_duration_since(Instant::now()))? {
+            Msg::Progress { done, total, phase } => send(Event::Progress { done, total, phase }),
+            m => return Ok(m),
         }
     }
 }

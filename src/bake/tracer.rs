@@ -16,7 +16,7 @@
 
 use crate::scene::Mesh;
 use glam::{Vec3, Vec3A};
-use obvhs::BvhBuildParams;
+pub use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::Ray;
@@ -44,6 +44,12 @@ pub struct Tracer {
 impl Tracer {
     /// Builds both BVHs. Zero-area and non-finite triangles are skipped.
     pub fn new(mesh: &Mesh) -> Self {
+        Self::with_params(mesh, BvhBuildParams::fast_build())
+    }
+
+    /// [`Tracer::new`] with obvhs's build parameters for the CWBVH the rays traverse (the cone
+    /// queries' BVH2 is always built fast).
+    pub fn with_params(mesh: &Mesh, params: BvhBuildParams) -> Self {
         let triangles: Vec<Triangle> = mesh
             .triangles
             .iter()
@@ -85,11 +91,7 @@ impl Tracer {
         let cwbvh = if triangles.is_empty() {
             CwBvh::default()
         } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(
-                &triangles,
-                BvhBuildParams::fast_build(),
-                &mut build_time,
-            )
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, params, &mut build_time)
         };
         let rt_triangles = cwbvh
             .primitive_indices

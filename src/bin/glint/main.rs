@@ -226,15 +226,7 @@ fn app(args: &AppArgs) -> Result<()> {
     };
     let (w, h) = parse_size(&args.size)?;
     let r = glint::app::replay_screenshot(opts, out, [w as f32, h as f32], 600.0)?;
-    println!(
-        "wrote {} ({}x{} px); painting possible {:.2} s and first fit prepared {:.2} s after launch; stroke release → preview {:.3} s",
-        out.display(),
-        r.width_px,
-        r.height_px,
-        r.first_fit_possible_secs,
-        r.first_fit_ready_secs,
-        r.release_to_preview_secs
-    );
+    println!("wrote {} {r}", out.display());
     Ok(())
 }
 
