@@ -1,5 +1,6 @@
 //! Bake, transfer and energy-table benchmarks: `cargo bench --bench bake --no-default-features [--
-//! SECTION…]`, sections `energy`, `matrix`, `view` (default: all).
+//! SECTION… MESH…]`, sections `energy`, `rays`, `matrix`, `view` (default: all); mesh names narrow
+//! the matrix.
 //!
 //! - `energy`: the energy table of the paper's layout (hemicube-7, J = 147, σ = π/40, 257 × 147
 //!   entries) and the isotropic J = 24 set: integrated entry by entry (each (row, lobe) pair on its
@@ -30,7 +31,8 @@ fn main() {
         .skip(1)
         .filter(|a| !a.starts_with('-'))
         .collect();
-    let wants = |name: &str| sections.is_empty() || sections.iter().any(|s| s == name);
+    let named = |s: &String| ["energy", "rays", "matrix", "view"].contains(&s.as_str());
+    let wants = |name: &str| !sections.iter().any(named) || sections.iter().any(|s| s == name);
     if wants("energy") {
         energy();
     }
@@ -38,7 +40,12 @@ fn main() {
         rays();
     }
     if wants("matrix") {
-        matrix();
+        // Mesh names among the arguments narrow the matrix to them.
+        let meshes: Vec<&str> = MESHES
+            .into_iter()
+            .filter(|m| sections.iter().any(|s| s == m))
+            .collect();
+        matrix(if meshes.is_empty() { &MESHES } else { &meshes });
     }
     if wants("view") {
         view();
@@ -109,24 +116,30 @@ fn energy() {
     let _ = std::fs::remove_dir_all(&cache);
 }
 
-/// Occlusion rays as the bake casts them (from each vertex, offset 1e-4 of the diagonal along its
-/// normal, towards directions above its tangent plane), through tracers built with different
-/// parameters, side by side.
+/// Occlusion rays as the bake casts them: from each of ~1,000 vertices (offset 1e-4 of the
+/// diagonal along the normal) along the mean direction of every 5.625° visibility cell above its
+/// tangent plane (a 64-per-side direction set's light tree, cells of ≤ 12 leaves, in leaf order as
+/// the bake visits them), one ray at a time through obvhs's CWBVH (the old tracer, with three build
+/// qualities) and in packets of 8 through the BVH2 (`Tracer::occluded_from`), side by side.
 fn rays() {
     use glam::{Vec3, Vec3A};
-    use glint::bake::tracer::{BvhBuildParams, Tracer};
+    use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};
+    use glint::sphere::{DirectionSet, LightTree};
     use rayon::prelude::*;
-    // 2,048 directions: a Fibonacci sphere.
-    let dirs: Vec<Vec3A> = (0..2048)
-        .map(|k| {
-            let z = 1.0 - (2.0 * k as f32 + 1.0) / 2048.0;
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let phi = k as f32 * 2.399_963;
-            Vec3A::new(r * phi.cos(), r * phi.sin(), z)
-        })
-        .collect();
+    let tree = LightTree::build(&DirectionSet::cube(64).unwrap());
+    fn cells(tree: &LightTree, k: usize, out: &mut Vec<Vec3A>) {
+        let node = tree.nodes()[k];
+        if node.count <= 12 || node.is_leaf() {
+            out.push(node.mean_direction.as_vec3().into());
+        } else {
+            cells(tree, node.left as usize, out);
+            cells(tree, node.right as usize, out);
+        }
+    }
+    let mut dirs = Vec::new();
+    cells(&tree, 0, &mut dirs);
     println!(
-        "| mesh | triangles | tracer (obvhs CWBVH build) | build (s) | rays | trace (s), median of 3 | M rays/s | occluded |"
+        "| mesh | triangles | tracer | build (s) | rays | trace (s), median of 3 | M rays/s | occluded |"
     );
     println!("|---|---|---|---|---|---|---|---|");
     for mesh in ["bunny", "dragon", "dragon_100k"] {
@@ -135,52 +148,83 @@ fn rays() {
         let m = &scene.mesh;
         let offset = 1e-4 * (scene.bounds.max - scene.bounds.min).length();
         let step = (m.positions.len() / 1000).max(1);
-        let origins: Vec<(Vec3A, Vec3A)> = (0..m.positions.len())
+        let vertices: Vec<(Vec3A, Vec<Vec3A>)> = (0..m.positions.len())
             .step_by(step)
             .map(|i| {
                 let n: Vec3 = m.normals[i];
-                ((m.positions[i] + n * offset).into(), n.into())
+                let above = dirs
+                    .iter()
+                    .copied()
+                    .filter(|d| d.dot(n.into()) > 0.0)
+                    .collect();
+                ((m.positions[i] + n * offset).into(), above)
             })
             .collect();
-        let rays: usize = origins
-            .iter()
-            .map(|(_, n)| dirs.iter().filter(|d| d.dot(*n) > 0.0).count())
-            .sum();
-        for (name, params) in [
-            ("fast (the default)", BvhBuildParams::fast_build()),
-            ("medium", BvhBuildParams::medium_build()),
-            ("slow", BvhBuildParams::slow_build()),
-        ] {
-            let t = Instant::now();
-            let tracer = Tracer::with_params(m, params);
-            let build = t.elapsed().as_secs_f64();
-            let (secs, hits) = median_of(3, || {
-                origins
-                    .par_iter()
-                    .map(|&(o, n)| {
-                        dirs.iter()
-                            .filter(|d| d.dot(n) > 0.0 && tracer.occluded(o, **d))
-                            .count()
-                    })
-                    .sum::<usize>()
-            });
+        let rays: usize = vertices.iter().map(|(_, d)| d.len()).sum();
+        let row = |name: &str, build: f64, secs: f64, hits: usize| {
             println!(
-                "| {mesh} | {} | {name} | {build:.3} | {:.2} M | {secs:.3} | {:.2} | {:.1} % |",
+                "| {mesh} | {} | {name} | {build:.3} | {:.2} M | {secs:.3} | {:.2} | {:.2} % |",
                 m.triangles.len(),
                 rays as f64 / 1e6,
                 rays as f64 / secs / 1e6,
                 100.0 * hits as f64 / rays as f64
             );
+        };
+        for (name, params) in [
+            (
+                "CWBVH fast build, one ray at a time (the old tracer)",
+                BvhBuildParams::fast_build(),
+            ),
+            (
+                "CWBVH medium build, one ray at a time",
+                BvhBuildParams::medium_build(),
+            ),
+            (
+                "CWBVH slow build, one ray at a time",
+                BvhBuildParams::slow_build(),
+            ),
+        ] {
+            let t = Instant::now();
+            let tracer = Tracer::with_params(m, params);
+            let build = t.elapsed().as_secs_f64();
+            let (secs, hits) = median_of(3, || {
+                vertices
+                    .par_iter()
+                    .map(|(o, ds)| ds.iter().filter(|d| tracer.occluded(*o, **d)).count())
+                    .sum::<usize>()
+            });
+            row(name, build, secs, hits);
         }
+        let t = Instant::now();
+        let tracer = Tracer::new(m);
+        let build = t.elapsed().as_secs_f64();
+        let (secs, hits) = median_of(3, || {
+            vertices
+                .par_iter()
+                .map(|(o, ds)| {
+                    let mut out = vec![false; ds.len()];
+                    tracer.occluded_from(*o, ds, &mut out);
+                    out.iter().filter(|&&h| h).count()
+                })
+                .sum::<usize>()
+        });
+        row(
+            &format!("BVH2, packets of {PACKET} (the new tracer)"),
+            build,
+            secs,
+            hits,
+        );
     }
 }
 
-fn matrix() {
+const MESHES: [&str; 5] = ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"];
+
+fn matrix(meshes: &[&str]) {
     println!(
         "| mesh | map | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    for mesh in ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"] {
+    for &mesh in meshes {
         let scene =
             glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         for map in ["studio_1k", "courtyard_1k", "interior_1k"] {

@@ -113,6 +113,8 @@ pub struct CutScratch {
     refine: Vec<u32>,
     /// Cells traced for the current vertex (boundary refinement only): (node, cell size).
     traced: Vec<(u32, u32)>,
+    /// Cells to trace in one batch ([`trace_cells`]), kept to reuse its allocation.
+    batch: Vec<(u32, u32)>,
     generation: u32,
 }
 
@@ -126,6 +128,7 @@ impl CutScratch {
             visible: vec![false; n],
             refine: vec![0; n],
             traced: Vec::new(),
+            batch: Vec::new(),
             generation: 0,
         }
     }
@@ -542,7 +545,11 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             return (w, 0.5 * w, 0.5 * w);
         }
     }
-    let known = known || node.count as usize <= ctx.trace_leaves;
+    let known_below = known || node.count as usize <= ctx.trace_leaves;
+    if known_below && !known {
+        trace_cells(ctx, k, cell);
+    }
+    let known = known_below;
     let start = out.len();
     let (wl, vl, dl) = build(ctx, node.left as usize, known, cell, out);
     let mid = out.len();
@@ -562,8 +569,62 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     (w, vl + vr, dev)
 }
 
+/// Traces, in packets ([`Tracer::occluded_from`]), every visibility cell under node `k` that
+/// [`build`] will ask [`cell_visible`] for (the same descent: above the horizon, with cosine mass,
+/// split where marked for refinement) and has not been traced yet, and caches the answers: the
+/// cells come in leaf order, so a packet's rays point alike.
+fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
+    let mut cells = std::mem::take(&mut ctx.scratch.batch);
+    cells.clear();
+    collect_cells(ctx, k, cell, &mut cells);
+    let dirs: Vec<Vec3A> = cells
+        .iter()
+        .map(|&(k, _)| ctx.tree.nodes()[k as usize].mean_direction.as_vec3().into())
+        .collect();
+    let mut visible = vec![false; cells.len()];
+    ctx.tracer.occluded_from(ctx.apex, &dirs, &mut visible);
+    for (&(k, cell), occluded) in cells.iter().zip(visible) {
+        let key = ctx.key(ctx.tree.nodes()[k as usize].first, cell as usize);
+        let s = &mut *ctx.scratch;
+        if ctx.boundary_levels > 0 {
+            s.traced.push((k, cell));
+        }
+        s.stamp[key] = s.generation;
+        s.visible[key] = !occluded;
+    }
+    ctx.rays += cells.len() as u64;
+    ctx.scratch.batch = cells;
+}
+
+/// The cells [`trace_cells`] traces, in leaf order: (node, cell size).
+fn collect_cells(ctx: &Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>) {
+    let node = &ctx.tree.nodes()[k];
+    let (max_cos, wholly_above) = node.horizon(ctx.n);
+    if max_cos <= 0.0 {
+        return;
+    }
+    let refined = ctx.boundary_levels > 0
+        && node.count as usize <= cell
+        && !node.is_leaf()
+        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
+    let cell = if refined { (cell / 4).max(1) } else { cell };
+    if node.is_leaf() || node.count as usize <= cell {
+        let w = if wholly_above {
+            node.moment.dot(ctx.n)
+        } else {
+            cosine_mass(ctx.tree, k, ctx.n)
+        };
+        if w > 0.0 && ctx.scratch.stamp[ctx.key(node.first, cell)] != ctx.scratch.generation {
+            out.push((k as u32, cell as u32));
+        }
+        return;
+    }
+    collect_cells(ctx, node.left as usize, cell, out);
+    collect_cells(ctx, node.right as usize, cell, out);
+}
+
 /// Visibility of a cell (tree node `k`, of cell size `cell`) along its mean direction, traced once
-/// per vertex and cached.
+/// per vertex and cached ([`trace_cells`] traces them ahead in packets).
 fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::TreeNode) -> bool {
     let key = ctx.key(node.first, cell);
     let s = &mut *ctx.scratch;
