@@ -458,24 +458,24 @@ mod tests {
     /// (rays in random, not coherent, directions: the hardest case for a packet's bookkeeping).
     /// Exact agreement is not promised — the two BVHs' node bounds round differently — but a
     /// disagreement needs a ray within rounding of a triangle's edge or a node's face.
+    /// A point of the unit cube.
+    fn unit(rng: &mut Rng) -> Vec3 {
+        Vec3::new(
+            rng.next_f64() as f32,
+            rng.next_f64() as f32,
+            rng.next_f64() as f32,
+        )
+    }
+
     #[test]
     fn packets_answer_as_single_rays() {
         let mut rng = Rng::new(7);
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         for t in 0..400u32 {
-            let centre = Vec3::new(
-                rng.next_f64() as f32,
-                rng.next_f64() as f32,
-                rng.next_f64() as f32,
-            ) * 4.0
-                - 2.0;
+            let centre = unit(&mut rng) * 4.0 - 2.0;
             for _ in 0..3 {
-                let jitter = Vec3::new(
-                    rng.next_f64() as f32,
-                    rng.next_f64() as f32,
-                    rng.next_f64() as f32,
-                ) - 0.5;
+                let jitter = unit(&mut rng) - 0.5;
                 positions.push(centre + jitter * 0.6);
             }
             triangles.push([3 * t, 3 * t + 1, 3 * t + 2]);
@@ -490,12 +490,7 @@ mod tests {
         let tracer = Tracer::new(&mesh);
         let (mut rays, mut hits, mut differ) = (0usize, 0usize, 0usize);
         for _ in 0..500 {
-            let origin = Vec3A::new(
-                rng.next_f64() as f32,
-                rng.next_f64() as f32,
-                rng.next_f64() as f32,
-            ) * 5.0
-                - 2.5;
+            let origin = Vec3A::from(unit(&mut rng)) * 5.0 - 2.5;
             let count = 1 + (rng.next_f64() as f32 * 40.0) as usize;
             let dirs: Vec<Vec3A> = (0..count)
                 .map(|_| {
