@@ -1,6 +1,6 @@
 //! Bake, transfer and energy-table benchmarks: `cargo bench --bench bake --no-default-features [--
-//! SECTION… MESH…]`, sections `energy`, `rays`, `matrix`, `view` (default: all); mesh names narrow
-//! the matrix.
+//! SECTION… MESH…]`, sections `energy`, `rays`, `matrix`, `view`, `million` (default: all); mesh
+//! names narrow the matrix.
 //!
 //! - `energy`: the energy table of the paper's layout (hemicube-7, J = 147, σ = π/40, 257 × 147
 //!   entries) and the isotropic J = 24 set: integrated entry by entry (each (row, lobe) pair on its
@@ -31,7 +31,7 @@ fn main() {
         .skip(1)
         .filter(|a| !a.starts_with('-'))
         .collect();
-    let named = |s: &String| ["energy", "rays", "matrix", "view"].contains(&s.as_str());
+    let named = |s: &String| ["energy", "rays", "matrix", "view", "million"].contains(&s.as_str());
     let wants = |name: &str| !sections.iter().any(named) || sections.iter().any(|s| s == name);
     if wants("energy") {
         energy();
@@ -49,6 +49,9 @@ fn main() {
     }
     if wants("view") {
         view();
+    }
+    if wants("million") {
+        million();
     }
 }
 
@@ -243,6 +246,67 @@ fn matrix(meshes: &[&str]) {
             );
         }
     }
+}
+
+/// Peak resident set size of this process so far (bytes; Linux's `ru_maxrss` is in KiB).
+fn peak_rss() -> u64 {
+    // SAFETY: getrusage writes a plain struct of integers; a zeroed one is a valid value for it.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: RUSAGE_SELF with a valid pointer to that struct.
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) };
+    usage.ru_maxrss as u64 * 1024
+}
+
+/// Resident set size now (bytes; `/proc/self/statm`, 4 KiB pages).
+fn current_rss() -> u64 {
+    std::fs::read_to_string("/proc/self/statm")
+        .ok()
+        .and_then(|s| {
+            s.split_whitespace()
+                .nth(1)
+                .and_then(|v| v.parse::<u64>().ok())
+        })
+        .unwrap_or(0)
+        * 4096
+}
+
+/// The million-triangle mesh: dragon_100k with every edge split twice (4× the triangles each
+/// time), baked with the defaults under courtyard_1k, once (it is the slowest case), in a process
+/// of its own so that the peak RSS is this bake's (run `-- million` alone).
+fn million() {
+    let mut scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
+    for _ in 0..2 {
+        glint::scene::split_edges(&mut scene.mesh, &|_, _| true);
+    }
+    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr")).unwrap();
+    let before = peak_rss();
+    let t = Instant::now();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let after_decisions = peak_rss();
+    let live_after_decisions = current_rss();
+    let bake = baker.bake_refined(None, &|_| {});
+    let secs = t.elapsed().as_secs_f64();
+    let s = &bake.stats;
+    let mib = |b: u64| b as f64 / (1024.0 * 1024.0);
+    println!(
+        "| triangles | vertices | baked vertices | bake (s) | deciding (s) | rays | rays/s | peak RSS before the bake | after the decisions (BVHs; live) | after the bake | cuts |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| {} | {} | {} | {secs:.1} | {:.2} | {:.1} M | {:.2} M | {:.0} MiB | {:.0} MiB ({:.0} MiB) | {:.0} MiB | {:.0} MiB ({:.0} B/vertex) |",
+        scene.mesh.triangles.len(),
+        scene.mesh.positions.len(),
+        s.vertices,
+        s.decision_seconds,
+        s.rays_traced as f64 / 1e6,
+        s.rays_traced as f64 / (s.seconds - s.decision_seconds).max(1e-9) / 1e6,
+        mib(before),
+        mib(after_decisions),
+        mib(live_after_decisions),
+        mib(peak_rss()),
+        mib(s.bytes as u64),
+        s.bytes_per_vertex,
+    );
 }
 
 fn view() {

@@ -430,6 +430,8 @@ pub fn vertex_cut(
     } else {
         Vec::new()
     };
+    // Kept for the whole bake: no spare capacity (a vertex's cut grew by doubling).
+    entries.shrink_to_fit();
     VertexCut {
         entries,
         rays: ctx.rays,

@@ -137,19 +137,40 @@ pub struct Cuts {
 impl Cuts {
     /// Packs per-vertex cuts (one per vertex, in vertex order).
     pub fn from_vertex_cuts(cuts: &[VertexCut]) -> Self {
-        let mut out = Cuts {
-            offsets: Vec::with_capacity(cuts.len() + 1),
-            ..Default::default()
-        };
-        out.offsets.push(0);
+        let mut out = Self::with_capacity(cuts);
         for c in cuts {
-            for &(node, v) in &c.entries {
-                out.nodes.push(node);
-                out.visibility.push(quantise(v));
-            }
-            out.offsets.push(out.nodes.len() as u32);
+            out.push(c);
         }
         out
+    }
+
+    /// [`Cuts::from_vertex_cuts`], freeing each vertex's cut as it is copied: the peak memory is
+    /// the larger of the two forms, not their sum.
+    pub fn from_owned_vertex_cuts(cuts: Vec<VertexCut>) -> Self {
+        let mut out = Self::with_capacity(&cuts);
+        for c in cuts {
+            out.push(&c);
+        }
+        out
+    }
+
+    fn with_capacity(cuts: &[VertexCut]) -> Self {
+        let entries = cuts.iter().map(|c| c.entries.len()).sum();
+        let mut offsets = Vec::with_capacity(cuts.len() + 1);
+        offsets.push(0);
+        Cuts {
+            offsets,
+            nodes: Vec::with_capacity(entries),
+            visibility: Vec::with_capacity(entries),
+        }
+    }
+
+    fn push(&mut self, c: &VertexCut) {
+        for &(node, v) in &c.entries {
+            self.nodes.push(node);
+            self.visibility.push(quantise(v));
+        }
+        self.offsets.push(self.nodes.len() as u32);
     }
 
     /// Number of vertices.
@@ -487,7 +508,7 @@ impl<'a> Baker<'a> {
         vertices: &[u32],
         progress: &(dyn Fn(usize) + Sync),
     ) -> Vec<VertexCut> {
-        self.bake_points(&self.points_of(vertices), &[], false, progress)
+        self.bake_points(&self.points_of(vertices), None, false, progress)
     }
 
     /// (position, unit normal) of each vertex, `None` for an index out of range.
@@ -504,12 +525,12 @@ impl<'a> Baker<'a> {
     }
 
     /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
-    /// gives an empty cut. `agreed[i]`, where given, is what point i takes from its traced
+    /// gives an empty cut. `agreed(i)`, where given, is what point i takes from its traced
     /// neighbours and `record` whether each records what it knows for others ([`cuts::Prior`]).
     fn bake_points(
         &self,
         points: &[Option<(DVec3, DVec3)>],
-        agreed: &[Vec<[u64; 2]>],
+        agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
         progress: &(dyn Fn(usize) + Sync),
     ) -> Vec<VertexCut> {
@@ -537,9 +558,10 @@ impl<'a> Baker<'a> {
                     } else {
                         match points[i as usize] {
                             Some((p, n)) => {
+                                let known = agreed.map(|f| f(i as usize)).unwrap_or_default();
                                 let prior = cuts::Prior {
                                     cells: &self.cells,
-                                    agreed: agreed.get(i as usize).map_or(&[], |a| a.as_slice()),
+                                    agreed: &known,
                                     record,
                                 };
                                 cuts::vertex_cut(
@@ -565,11 +587,18 @@ impl<'a> Baker<'a> {
                 },
             )
             .collect();
-        let mut out = vec![VertexCut::default(); points.len()];
-        for (&i, cut) in order.iter().zip(cuts) {
-            out[i as usize] = cut;
+        // Back to the points' order, in place (cuts[j] belongs at order[j]): a second vector of
+        // cuts would cost 72 bytes a vertex more at the peak.
+        let mut cuts = cuts;
+        let mut target = order;
+        for j in 0..cuts.len() {
+            while target[j] as usize != j {
+                let t = target[j] as usize;
+                cuts.swap(j, t);
+                target.swap(j, t);
+            }
         }
-        out
+        cuts
     }
 
     /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's
@@ -639,7 +668,7 @@ impl<'a> Baker<'a> {
             }
         }
         // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
-        let cuts = self.bake_points(&self.points_of(&first), &[], true, &|k| {
+        let cuts = self.bake_points(&self.points_of(&first), None, true, &|k| {
             progress(k.min(own))
         });
         store(&first, cuts, per_vertex, baked);
@@ -701,35 +730,38 @@ impl<'a> Baker<'a> {
         let done = own + interpolated;
         progress(done);
         // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
-        // visibility.
-        let agreed: Vec<Vec<[u64; 2]>> = {
+        // visibility: worked out as each is traced (512 bytes a vertex at 5.625°, so not for all
+        // of them at once).
+        let cuts = {
             let per_vertex: &[VertexCut] = per_vertex;
-            traced
-                .par_iter()
-                .map(|&v| {
-                    match sparse::anchors(
-                        v as usize,
-                        &self.positions,
-                        &self.normals,
-                        &self.vertex_neighbours,
-                        &self.sampled,
-                        max_edge,
-                    ) {
-                        Some(anchors) => {
-                            let bits: Vec<&[[u64; 2]]> = anchors
-                                .iter()
-                                .map(|&u| per_vertex[u as usize].cell_bits.as_slice())
-                                .collect();
-                            sparse::agreed_cells(&bits)
-                        }
-                        None => Vec::new(),
+            let agreed = |i: usize| -> Vec<[u64; 2]> {
+                let v = traced[i] as usize;
+                match sparse::anchors(
+                    v,
+                    &self.positions,
+                    &self.normals,
+                    &self.vertex_neighbours,
+                    &self.sampled,
+                    max_edge,
+                ) {
+                    Some(anchors) => {
+                        let bits: Vec<&[[u64; 2]]> = anchors
+                            .iter()
+                            .map(|&u| per_vertex[u as usize].cell_bits.as_slice())
+                            .collect();
+                        sparse::agreed_cells(&bits)
                     }
-                })
-                .collect()
+                    None => Vec::new(),
+                }
+            };
+            self.bake_points(&self.points_of(&traced), Some(&agreed), false, &|k| {
+                progress(done + k)
+            })
         };
-        let cuts = self.bake_points(&self.points_of(&traced), &agreed, false, &|k| {
-            progress(done + k)
-        });
+        // The sampled vertices' cell bits have served: free them.
+        for c in per_vertex.iter_mut() {
+            c.cell_bits = Vec::new();
+        }
         store(&traced, cuts, per_vertex, baked);
     }
 
@@ -852,7 +884,7 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            per_vertex.extend(self.bake_points(&points, &[], false, &|_| {}));
+            per_vertex.extend(self.bake_points(&points, None, false, &|_| {}));
             split_total += parents.len();
             parents_all.extend(parents);
             rounds_done += 1;
@@ -893,7 +925,6 @@ impl<'a> Baker<'a> {
         let interpolated = per_vertex.iter().filter(|c| c.interpolated).count();
         decisions.interpolated_vertices = interpolated;
         decisions.sampling_reason = self.sampling_reason(interpolated);
-        let cuts = Cuts::from_vertex_cuts(&per_vertex);
         let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
         let capped_vertices = per_vertex
             .iter()
@@ -904,6 +935,7 @@ impl<'a> Baker<'a> {
             .map(|c| c.entries.len())
             .max()
             .unwrap_or(0);
+        let cuts = Cuts::from_owned_vertex_cuts(per_vertex);
         let bytes = cuts.bytes() + refinement.parents.len() * 8 + refinement.triangles.len() * 12;
         let stats = BakeStats {
             vertices: n,

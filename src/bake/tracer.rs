@@ -32,10 +32,11 @@ use obvhs::rt_triangle::RtTriangle;
 use obvhs::triangle::Triangle;
 use std::time::Duration;
 
-/// Bounding sphere of a triangle, in BVH primitive order.
+/// Bounding sphere of a triangle, in BVH primitive order (16 bytes: a million-triangle mesh keeps
+/// 1.6 M of them).
 #[derive(Debug, Clone, Copy)]
 struct Sphere {
-    centre: Vec3A,
+    centre: Vec3,
     radius: f32,
 }
 
@@ -47,8 +48,8 @@ pub struct Tracer {
     /// In BVH2 primitive order (a BVH2 leaf's primitives are a range of it), with their bounding
     /// spheres.
     triangles: Vec<Triangle>,
-    /// The same triangles in CWBVH primitive order, in obvhs's intersection-ready form.
-    rt_triangles: Vec<RtTriangle>,
+    /// Per CWBVH primitive slot, its triangle's index in `triangles`.
+    cwbvh_triangles: Vec<u32>,
     spheres: Vec<Sphere>,
     bvh2: Bvh2,
     cwbvh: CwBvh,
@@ -86,7 +87,7 @@ impl Tracer {
                     .max((t.v1 - centre).length())
                     .max((t.v2 - centre).length());
                 Sphere {
-                    centre,
+                    centre: centre.into(),
                     radius: radius * (1.0 + 1e-5) + 1e-7,
                 }
             })
@@ -106,15 +107,17 @@ impl Tracer {
         } else {
             obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, params, &mut build_time)
         };
-        let rt_triangles = cwbvh
+        // BVH2 order from here on: the cone test and the packets read a leaf's range directly, and
+        // the CWBVH's primitives map into it (one copy of the triangles, not one per BVH).
+        let mut position = vec![0u32; triangles.len()];
+        for (k, &i) in bvh2.primitive_indices.iter().enumerate() {
+            position[i as usize] = k as u32;
+        }
+        let cwbvh_triangles = cwbvh
             .primitive_indices
             .iter()
-            .map(|&i| {
-                let t = &triangles[i as usize];
-                RtTriangle::new(t.v0, t.v1, t.v2)
-            })
+            .map(|&i| position[i as usize])
             .collect();
-        // BVH2 order from here on: the cone test and the packets read a leaf's range directly.
         let (triangles, spheres): (Vec<Triangle>, Vec<Sphere>) = bvh2
             .primitive_indices
             .iter()
@@ -122,7 +125,7 @@ impl Tracer {
             .unzip();
         Self {
             triangles,
-            rt_triangles,
+            cwbvh_triangles,
             spheres,
             bvh2,
             cwbvh,
@@ -144,9 +147,10 @@ impl Tracer {
             return false;
         }
         let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
-        !self
-            .cwbvh
-            .ray_traverse_miss(ray, |ray, id| self.rt_triangles[id].intersect(ray))
+        !self.cwbvh.ray_traverse_miss(ray, |ray, id| {
+            let t = &self.triangles[self.cwbvh_triangles[id] as usize];
+            RtTriangle::new(t.v0, t.v1, t.v2).intersect(ray)
+        })
     }
 
     /// `out[i]` = whether the ray from `origin` along `dirs[i]` hits a triangle (t ≥ 0), as
@@ -269,7 +273,7 @@ impl Tracer {
                 for k in first..first + node.prim_count as usize {
                     let t = &self.triangles[k];
                     let s = self.spheres[k];
-                    if !sphere_meets_cone(s.centre, s.radius, apex, axis, cos_a, sin_a) {
+                    if !sphere_meets_cone(s.centre.into(), s.radius, apex, axis, cos_a, sin_a) {
                         continue;
                     }
                     if triangle_meets_cone(t, apex, n, axis, cos_a, sin_a) {
