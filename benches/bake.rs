@@ -1,14 +1,18 @@
 //! Bake, transfer and energy-table benchmarks: `cargo bench --bench bake --no-default-features [--
-//! SECTION… MESH…]`, sections `energy`, `rays`, `matrix`, `view`, `million` (default: all); mesh
-//! names narrow the matrix.
+//! SECTION… MESH… MAP…]`, sections `energy`, `rays`, `matrix`, `view`, `million` (default: all);
+//! mesh and map names narrow the matrix.
 //!
 //! - `energy`: the energy table of the paper's layout (hemicube-7, J = 147, σ = π/40, 257 × 147
 //!   entries) and the isotropic J = 24 set: integrated entry by entry (each (row, lobe) pair on its
 //!   own, as the table used to be built) and as the table builds it now (each distinct geometry
 //!   once), then read back from the disk cache; median of 3 each, side by side in one run.
+//! - `rays`: the bake's rays (cell directions above the tangent plane at ~1,000 vertices) one at a
+//!   time through the CWBVH (three build qualities) and in packets through the BVH2, side by side.
+//! - `million`: the 1.6 M-triangle mesh (dragon_100k split twice): bake time and peak memory.
 //! - `matrix`: `glint bake`'s default bake (decisions, refinement) of each of bunny, teapot,
 //!   suzanne, dragon.glb and dragon_100k under each of studio_1k, courtyard_1k and interior_1k:
-//!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices.
+//!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices; with
+//!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side.
 //! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
 //!   per run (two runs, so the second shows warm caches): the bake's seconds (decisions and
 //!   refinement included), rays and the refined vertex count; then, for the isotropic J = 24 lobe
@@ -40,12 +44,21 @@ fn main() {
         rays();
     }
     if wants("matrix") {
-        // Mesh names among the arguments narrow the matrix to them.
+        // Mesh and map names among the arguments narrow the matrix to them.
         let meshes: Vec<&str> = MESHES
             .into_iter()
             .filter(|m| sections.iter().any(|s| s == m))
             .collect();
-        matrix(if meshes.is_empty() { &MESHES } else { &meshes });
+        let maps: Vec<&str> = MAPS
+            .into_iter()
+            .filter(|m| sections.iter().any(|s| s == m))
+            .collect();
+        let side_by_side = sections.iter().any(|s| s == "single");
+        matrix(
+            if meshes.is_empty() { &MESHES } else { &meshes },
+            if maps.is_empty() { &MAPS } else { &maps },
+            side_by_side,
+        );
     }
     if wants("view") {
         view();
@@ -221,23 +234,45 @@ fn rays() {
 }
 
 const MESHES: [&str; 5] = ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"];
+const MAPS: [&str; 3] = ["studio_1k", "courtyard_1k", "interior_1k"];
 
-fn matrix(meshes: &[&str]) {
+/// `side_by_side`: each bake also with the tracer one ray at a time (`Tracer::set_packets(false)`),
+/// in the same run.
+fn matrix(meshes: &[&str], maps: &[&str], side_by_side: bool) {
     println!(
-        "| mesh | map | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
+        "| mesh | map | bake, one ray at a time (s) | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for &mesh in meshes {
         let scene =
             glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-        for map in ["studio_1k", "courtyard_1k", "interior_1k"] {
+        for map in maps {
             let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
-            let (secs, stats) = median_of(3, || {
-                let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-                baker.bake_refined(None, &|_| {}).stats
-            });
+            let bake = |packets: bool| {
+                median_of(3, || {
+                    let mut baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+                    baker.tracer.set_packets(packets);
+                    baker.bake_refined(None, &|_| {}).stats
+                })
+            };
+            let (single_secs, single) = if side_by_side {
+                let (t, s) = bake(false);
+                (t, Some(s))
+            } else {
+                (f64::NAN, None)
+            };
+            let (secs, stats) = bake(true);
+            // Packets and single rays disagree only for rays within rounding of a triangle's edge
+            // (about 1 in 10⁵), which can move a boundary cell: the rays differ as little.
+            if let Some(s) = single {
+                let (a, b) = (s.rays_traced as f64, stats.rays_traced as f64);
+                assert!(
+                    (a - b).abs() <= 1e-4 * b,
+                    "{a} rays one at a time, {b} in packets"
+                );
+            }
             println!(
-                "| {mesh} | {map} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
+                "| {mesh} | {map} | {single_secs:.2} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
                 stats.decision_seconds,
                 scene.mesh.positions.len(),
                 stats.vertices,
