@@ -465,6 +465,26 @@ fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
         .sum()
 }
 
+/// Σ_i Ω_i c_i over node `k`: its moment's projection when it lies wholly above the horizon, else
+/// its leaves' ([`cosine_mass`]).
+fn node_weight(ctx: &Ctx, k: usize, wholly_above: bool) -> f64 {
+    if wholly_above {
+        ctx.tree.nodes()[k].moment.dot(ctx.n)
+    } else {
+        cosine_mass(ctx.tree, k, ctx.n)
+    }
+}
+
+/// The cell size below `node` in a traced subtree: a quarter of `cell` where the node is a cell
+/// that [`mark_boundaries`] marked (a shadow edge crosses it), else `cell`.
+fn cell_size(ctx: &Ctx, node: &crate::sphere::TreeNode, cell: usize) -> usize {
+    let refined = ctx.boundary_levels > 0
+        && node.count as usize <= cell
+        && !node.is_leaf()
+        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
+    if refined { (cell / 4).max(1) } else { cell }
+}
+
 /// `cell`: the visibility cell size (leaves) in this subtree — `cell_leaves`, or a quarter of it
 /// per boundary refinement.
 fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, f32)>) -> Sums {
@@ -475,19 +495,14 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     }
     // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a
     // quarter of its leaves instead.
-    let refined = ctx.boundary_levels > 0
-        && known
-        && node.count as usize <= cell
-        && !node.is_leaf()
-        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
-    let cell = if refined { (cell / 4).max(1) } else { cell };
+    let cell = if known {
+        cell_size(ctx, &node, cell)
+    } else {
+        cell
+    };
     if node.is_leaf() || (known && node.count as usize <= cell) {
         // A visibility cell: one ray along its mean direction (cached), V ∈ {0, 1} over the cell.
-        let w = if wholly_above {
-            node.moment.dot(ctx.n)
-        } else {
-            cosine_mass(ctx.tree, k, ctx.n)
-        };
+        let w = node_weight(ctx, k, wholly_above);
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
@@ -515,11 +530,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             f
         };
         if free {
-            let w = if wholly_above {
-                node.moment.dot(ctx.n)
-            } else {
-                cosine_mass(ctx.tree, k, ctx.n)
-            };
+            let w = node_weight(ctx, k, wholly_above);
             if w <= 0.0 {
                 return (0.0, 0.0, 0.0);
             }
@@ -534,11 +545,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         // A node so close to the horizon that even a blind guess V = ½ keeps its mean |Ṽ| error
         // within ε (½ Σ Ω c ≤ ε Ω) needs no rays. The O(1) bound Σ Ω c ≤ max cos · Ω screens
         // candidates.
-        let w = if wholly_above {
-            node.moment.dot(ctx.n)
-        } else {
-            cosine_mass(ctx.tree, k, ctx.n)
-        };
+        let w = node_weight(ctx, k, wholly_above);
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
@@ -608,17 +615,9 @@ fn collect_cells(ctx: &Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>) {
     if max_cos <= 0.0 {
         return;
     }
-    let refined = ctx.boundary_levels > 0
-        && node.count as usize <= cell
-        && !node.is_leaf()
-        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
-    let cell = if refined { (cell / 4).max(1) } else { cell };
+    let cell = cell_size(ctx, node, cell);
     if node.is_leaf() || node.count as usize <= cell {
-        let w = if wholly_above {
-            node.moment.dot(ctx.n)
-        } else {
-            cosine_mass(ctx.tree, k, ctx.n)
-        };
+        let w = node_weight(ctx, k, wholly_above);
         if w > 0.0 && ctx.scratch.stamp[ctx.key(node.first, cell)] != ctx.scratch.generation {
             out.push((k as u32, cell as u32));
         }

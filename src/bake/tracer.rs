@@ -1,6 +1,6 @@
 //! Ray and cone queries against the object's triangles (obvhs).
 //!
-//! Inputs: a world-space [`Mesh`]. Outputs: two queries, both conservative in the same direction:
+//! Inputs: a world-space [`Mesh`]. Outputs: three queries, all conservative in the same direction:
 //! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit,
 //!   CWBVH)?
 //! - [`Tracer::cone_free`]: is *every* ray from `apex` inside a cone, and above the plane through
@@ -10,7 +10,6 @@
 //!   restriction is what makes the test useful: only directions above the vertex's horizon matter
 //!   (Ṽ = V·max(cos, 0)), and the vertex's own neighbourhood lies below its tangent plane wherever
 //!   the surface is locally convex.
-//!
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
 //!   visibility cells), traced as packets of [`PACKET`] rays through the BVH2: a node's bounds
 //!   relative to the shared origin are computed once per packet, and a node is visited once for

@@ -72,23 +72,21 @@ pub fn table_in(lobes: &LobeSet, dir: Option<&Path>) -> (Arc<EnergyTable>, Sourc
     if let Some(hit) = remembered {
         return (hit, Source::Memory);
     }
-    let path = dir.map(|d| d.join(file_name(key)));
-    let (table, source) = match path
-        .as_deref()
-        .and_then(|p| read(p, key, &outgoing, lobes.len()))
-    {
-        Some(table) => (table, Source::Disk),
-        None => {
-            let table = EnergyTable::new(lobes, &outgoing, &quad);
-            if let Some(p) = &path {
-                // Best effort: a cache that cannot be written only costs a later process the
-                // integration.
-                let _ = std::fs::create_dir_all(dir.unwrap_or(Path::new(".")))
-                    .map(|()| glint_exporters::write_atomic(p, &encode(&table, key)));
+    let (table, source) =
+        match dir.and_then(|d| read(&d.join(file_name(key)), key, &outgoing, lobes.len())) {
+            Some(table) => (table, Source::Disk),
+            None => {
+                let table = EnergyTable::new(lobes, &outgoing, &quad);
+                if let Some(d) = dir {
+                    // Best effort: a cache that cannot be written only costs a later process the
+                    // integration.
+                    let _ = std::fs::create_dir_all(d).map(|()| {
+                        glint_exporters::write_atomic(&d.join(file_name(key)), &encode(&table, key))
+                    });
+                }
+                (table, Source::Integrated)
             }
-            (table, Source::Integrated)
-        }
-    };
+        };
     let table = Arc::new(table);
     if let Ok(mut m) = MEMORY.lock() {
         if m.len() >= MEMORY_SLOTS {
