@@ -13,7 +13,7 @@
 use super::AppError;
 use super::engine::{Engine, FitResult, PreviewChoice};
 use super::state::Document;
-use crate::bake::{BakeSettings, Baker, Cuts, VertexCut};
+use crate::bake::{BakeSettings, Baker, Cuts, PartialBake};
 use crate::fit::strokes::ViewSpec;
 use crate::render::Image;
 use crate::scene::Scene;
@@ -524,10 +524,10 @@ fn bake_phases(
     cancel: &std::sync::atomic::AtomicBool,
 ) {
     let n = baker.scene().mesh.positions.len();
-    let mut per_vertex = vec![VertexCut::default(); n];
-    // Vertices already baked: those of the first view and the traced neighbours they needed (vertex
-    // sampling, decision (f)) are not baked again with the rest, and the result is the CLI's.
-    let mut baked = vec![false; n];
+    let mut state = PartialBake::new(n);
+    // Vertices already baked (`state.baked`): those of the first view and the traced neighbours
+    // they needed (vertex sampling, decision (f)) are not baked again with the rest, and the result
+    // is the CLI's.
     let mut is_first = vec![false; n];
     for &v in first {
         if let Some(f) = is_first.get_mut(v as usize) {
@@ -541,9 +541,9 @@ fn bake_phases(
             if cancel.load(std::sync::atomic::Ordering::Relaxed) {
                 return;
             }
-            let done = baked.iter().filter(|&&b| b).count();
+            let done = state.baked.iter().filter(|&&b| b).count();
             let mut bake = || {
-                baker.bake_set(chunk, &mut per_vertex, &mut baked, &|k| {
+                baker.bake_set(chunk, &mut state, &|k| {
                     let _ = tx.send(Msg::Progress {
                         done: (done + k).min(n),
                         total: n,
@@ -558,7 +558,7 @@ fn bake_phases(
         }
         if tx
             .send(Msg::Cuts {
-                cuts: Cuts::from_vertex_cuts(&per_vertex),
+                cuts: state.cuts.clone(),
                 complete: false,
                 bake_secs: start.elapsed().as_secs_f64(),
                 refined: None,
@@ -574,7 +574,7 @@ fn bake_phases(
         total: n,
         phase: "refining",
     });
-    let refine = || baker.refine(per_vertex, start);
+    let refine = || baker.refine(state, start);
     let bake = match &pool {
         Some(pool) => pool.install(refine),
         None => refine(),

@@ -85,16 +85,24 @@ pub fn encode(header: &BakeHeader, cuts: &Cuts, refinement: &Refinement) -> Vec<
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(&json);
-    for &o in &cuts.offsets {
-        out.extend_from_slice(&o.to_le_bytes());
+    // In vertex order, however the cuts lie in memory.
+    let mut offset = 0u32;
+    out.extend_from_slice(&offset.to_le_bytes());
+    for v in 0..cuts.vertex_count() {
+        offset += cuts.cut_len(v) as u32;
+        out.extend_from_slice(&offset.to_le_bytes());
     }
-    for &n in &cuts.nodes {
-        out.extend_from_slice(&n.to_le_bytes());
+    for v in 0..cuts.vertex_count() {
+        cuts.nodes_of(v)
+            .iter()
+            .for_each(|n| out.extend_from_slice(&n.to_le_bytes()));
     }
-    for &v in &cuts.visibility {
-        out.extend_from_slice(&v.to_le_bytes());
+    for v in 0..cuts.vertex_count() {
+        cuts.quantised(v)
+            .iter()
+            .for_each(|q| out.extend_from_slice(&q.to_le_bytes()));
     }
-    if cuts.visibility.len() % 2 == 1 {
+    if cuts.node_count() % 2 == 1 {
         out.extend_from_slice(&[0, 0]);
     }
     out.extend_from_slice(&(refinement.parents.len() as u32).to_le_bytes());
@@ -220,8 +228,15 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
         .chunks_exact(2)
         .map(|b| u16::from_le_bytes([b[0], b[1]]))
         .collect();
+    let cuts = Cuts::from_rows(&offsets, nodes, visibility).ok_or_else(|| {
+        BakeFileError::Inconsistent {
+            path: p(),
+            message: "the cut offsets do not match the cut data".into(),
+        }
+    })?;
     let node_count = 2 * 6 * header.decisions.resolution * header.decisions.resolution;
-    if nodes.iter().any(|&n| n as usize >= node_count) {
+    if (0..cuts.vertex_count()).any(|v| cuts.nodes_of(v).iter().any(|&n| n as usize >= node_count))
+    {
         return Err(BakeFileError::Inconsistent {
             path: p(),
             message: "a cut names a node outside the light tree".into(),
@@ -271,15 +286,7 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
             ),
         });
     }
-    Ok((
-        header,
-        Cuts {
-            offsets,
-            nodes,
-            visibility,
-        },
-        refinement,
-    ))
+    Ok((header, cuts, refinement))
 }
 
 /// What [`bake_or_reuse`] did.

@@ -17,6 +17,7 @@ pub mod cuts;
 pub mod decisions;
 pub mod file;
 pub mod loaded;
+pub mod packed;
 pub mod refine;
 pub mod runs;
 pub mod sparse;
@@ -29,6 +30,7 @@ pub use cuts::{CutScratch, CutSettings, VertexCut};
 pub use decisions::{Decisions, FrameSource};
 use glam::{DVec3, Vec4};
 pub use loaded::{LoadBakeError, LoadedBake};
+pub use packed::{Cuts, PartialBake, VertexRecord};
 use rayon::prelude::*;
 pub use refine::{RefineSettings, Refinement};
 pub use runs::{Span, for_each_run};
@@ -77,6 +79,10 @@ impl Default for BakeSettings {
     }
 }
 
+/// Points baked per batch ([`Baker::bake_points`]): a batch's cuts are the only unpacked ones alive
+/// (~8 MiB of them), and its end costs the threads one wait.
+const BATCH: usize = 1 << 14;
+
 /// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of
 /// their positions, ties and `None`s in index order (the `None`s last).
 fn morton_order(points: &[Option<(DVec3, DVec3)>]) -> Vec<u32> {
@@ -121,88 +127,6 @@ pub enum BakeError {
     Settings(String),
     #[error("bake: {0}")]
     Refine(#[from] refine::RefineError),
-}
-
-/// Cuts of all vertices, compressed row storage.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cuts {
-    /// offsets[v]..offsets[v+1] index `nodes` and `visibility` for vertex v.
-    pub offsets: Vec<u32>,
-    /// Light-tree node indices, pre-order within each vertex.
-    pub nodes: Vec<u32>,
-    /// V_k quantised to u16 (V = q / 65535; error ≤ 7.6e-6).
-    pub visibility: Vec<u16>,
-}
-
-impl Cuts {
-    /// Packs per-vertex cuts (one per vertex, in vertex order).
-    pub fn from_vertex_cuts(cuts: &[VertexCut]) -> Self {
-        let mut out = Self::with_capacity(cuts);
-        for c in cuts {
-            out.push(c);
-        }
-        out
-    }
-
-    /// [`Cuts::from_vertex_cuts`], freeing each vertex's cut as it is copied: the peak memory is
-    /// the larger of the two forms, not their sum.
-    pub fn from_owned_vertex_cuts(cuts: Vec<VertexCut>) -> Self {
-        let mut out = Self::with_capacity(&cuts);
-        for c in cuts {
-            out.push(&c);
-        }
-        out
-    }
-
-    fn with_capacity(cuts: &[VertexCut]) -> Self {
-        let entries = cuts.iter().map(|c| c.entries.len()).sum();
-        let mut offsets = Vec::with_capacity(cuts.len() + 1);
-        offsets.push(0);
-        Cuts {
-            offsets,
-            nodes: Vec::with_capacity(entries),
-            visibility: Vec::with_capacity(entries),
-        }
-    }
-
-    fn push(&mut self, c: &VertexCut) {
-        for &(node, v) in &c.entries {
-            self.nodes.push(node);
-            self.visibility.push(quantise(v));
-        }
-        self.offsets.push(self.nodes.len() as u32);
-    }
-
-    /// Number of vertices.
-    pub fn vertex_count(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
-    }
-
-    /// (node, V) of vertex v's cut.
-    pub fn cut(&self, v: usize) -> impl Iterator<Item = (u32, f32)> + '_ {
-        let (a, b) = match (self.offsets.get(v), self.offsets.get(v + 1)) {
-            (Some(&a), Some(&b)) => (a as usize, b as usize),
-            _ => (0, 0),
-        };
-        self.nodes[a..b]
-            .iter()
-            .zip(&self.visibility[a..b])
-            .map(|(&n, &q)| (n, q as f32 / 65535.0))
-    }
-
-    /// Mean number of nodes per vertex.
-    pub fn mean_cut_size(&self) -> f64 {
-        self.nodes.len() as f64 / self.vertex_count().max(1) as f64
-    }
-
-    /// Bytes of the cut storage.
-    pub fn bytes(&self) -> usize {
-        self.offsets.len() * 4 + self.nodes.len() * 4 + self.visibility.len() * 2
-    }
-}
-
-fn quantise(v: f32) -> u16 {
-    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
 }
 
 /// Bake statistics.
@@ -508,7 +432,15 @@ impl<'a> Baker<'a> {
         vertices: &[u32],
         progress: &(dyn Fn(usize) + Sync),
     ) -> Vec<VertexCut> {
-        self.bake_points(&self.points_of(vertices), None, false, progress)
+        let mut out = vec![VertexCut::default(); vertices.len()];
+        self.bake_points(
+            &self.points_of(vertices),
+            None,
+            false,
+            progress,
+            &mut |i, cut| out[i] = cut,
+        );
+        out
     }
 
     /// (position, unit normal) of each vertex, `None` for an index out of range.
@@ -524,130 +456,129 @@ impl<'a> Baker<'a> {
             .collect()
     }
 
-    /// Cuts at the given (position, unit normal) points (in parallel), in the order given; `None`
-    /// gives an empty cut. `agreed(i)`, where given, is what point i takes from its traced
-    /// neighbours and `record` whether each records what it knows for others ([`cuts::Prior`]).
+    /// Cuts at the given (position, unit normal) points (in parallel), each handed to `store` with
+    /// its index in `points` as a batch finishes; `None` gives an empty cut. `agreed(i)`, where
+    /// given, is what point i takes from its traced neighbours and `record` whether each records
+    /// what it knows for others ([`cuts::Prior`]).
     fn bake_points(
         &self,
         points: &[Option<(DVec3, DVec3)>],
         agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
         progress: &(dyn Fn(usize) + Sync),
-    ) -> Vec<VertexCut> {
+        store: &mut dyn FnMut(usize, VertexCut),
+    ) {
         let done = std::sync::atomic::AtomicUsize::new(0);
         // Traced in Morton order of their positions: each thread takes a contiguous block of that
         // order, so consecutive vertices' rays cross the same BVH nodes and triangles, which stay
         // in its caches. Each cut depends on its own point alone, so the order changes the time
-        // only.
+        // only. Batches of that order are stored as they finish: only a batch's cuts are ever
+        // unpacked at once.
         let order = morton_order(points);
-        let cuts: Vec<VertexCut> = order
-            .par_iter()
-            .map_init(
-                || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
-                |scratch, &i| {
-                    let cut = if !self.decisions.trace_visibility {
-                        // No ray can hit: V = 1 over the whole upper hemisphere, the root covers
-                        // it.
-                        VertexCut {
-                            entries: vec![(0, 1.0)],
-                            rays: 0,
-                            epsilon_used: self.settings.cut.epsilon,
-                            interpolated: false,
-                            cell_bits: Vec::new(),
+        for batch in order.chunks(BATCH) {
+            let cuts: Vec<VertexCut> = batch
+                .par_iter()
+                .map_init(
+                    || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
+                    |scratch, &i| {
+                        let cut =
+                            self.point_cut(points[i as usize], i as usize, agreed, record, scratch);
+                        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                        if n.is_multiple_of(256) || n == points.len() {
+                            progress(n);
                         }
-                    } else {
-                        match points[i as usize] {
-                            Some((p, n)) => {
-                                let known = agreed.map(|f| f(i as usize)).unwrap_or_default();
-                                let prior = cuts::Prior {
-                                    cells: &self.cells,
-                                    agreed: &known,
-                                    record,
-                                };
-                                cuts::vertex_cut(
-                                    p,
-                                    n,
-                                    self.offset,
-                                    &self.tree,
-                                    &self.tracer,
-                                    &self.settings.cut,
-                                    &self.cell_neighbours,
-                                    scratch,
-                                    prior,
-                                )
-                            }
-                            None => VertexCut::default(),
-                        }
-                    };
-                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                    if n.is_multiple_of(256) || n == points.len() {
-                        progress(n);
-                    }
-                    cut
-                },
-            )
-            .collect();
-        // Back to the points' order, in place (cuts[j] belongs at order[j]): a second vector of
-        // cuts would cost 72 bytes a vertex more at the peak.
-        let mut cuts = cuts;
-        let mut target = order;
-        for j in 0..cuts.len() {
-            while target[j] as usize != j {
-                let t = target[j] as usize;
-                cuts.swap(j, t);
-                target.swap(j, t);
+                        cut
+                    },
+                )
+                .collect();
+            for (&i, cut) in batch.iter().zip(cuts) {
+                store(i as usize, cut);
             }
         }
-        cuts
     }
 
-    /// Cuts of every vertex of the scene's mesh, in vertex order; `order` (e.g. the fit view's
-    /// vertices first) only changes which finish first, not the result.
+    /// The cut at one point of [`Baker::bake_points`] (index `i`).
+    fn point_cut(
+        &self,
+        point: Option<(DVec3, DVec3)>,
+        i: usize,
+        agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
+        record: bool,
+        scratch: &mut CutScratch,
+    ) -> VertexCut {
+        if !self.decisions.trace_visibility {
+            // No ray can hit: V = 1 over the whole upper hemisphere, the root covers it.
+            return VertexCut {
+                entries: vec![(0, 1.0)],
+                rays: 0,
+                epsilon_used: self.settings.cut.epsilon,
+                interpolated: false,
+                cell_bits: Vec::new(),
+            };
+        }
+        let Some((p, n)) = point else {
+            return VertexCut::default();
+        };
+        let known = agreed.map(|f| f(i)).unwrap_or_default();
+        let prior = cuts::Prior {
+            cells: &self.cells,
+            agreed: &known,
+            record,
+        };
+        cuts::vertex_cut(
+            p,
+            n,
+            self.offset,
+            &self.tree,
+            &self.tracer,
+            &self.settings.cut,
+            &self.cell_neighbours,
+            scratch,
+            prior,
+        )
+    }
+
+    /// Cuts of every vertex of the scene's mesh; `order` (e.g. the fit view's vertices first) only
+    /// changes which finish first, not the result.
     pub fn bake_base(
         &self,
         order: Option<&[u32]>,
         progress: &(dyn Fn(usize) + Sync),
-    ) -> Vec<VertexCut> {
+    ) -> PartialBake {
         let n = self.positions.len();
         let default_order: Vec<u32> = (0..n as u32).collect();
         let order = order.unwrap_or(&default_order);
-        let mut per_vertex = vec![VertexCut::default(); n];
-        let mut baked = vec![false; n];
-        self.bake_set(order, &mut per_vertex, &mut baked, progress);
-        per_vertex
+        let mut state = PartialBake::new(n);
+        self.bake_set(order, &mut state, progress);
+        state
     }
 
-    /// Bakes the vertices of `vertices` not yet `baked` into `per_vertex` (both of the scene's
-    /// vertex count), with vertex sampling (decision (f), [`sparse`]): the sampled vertices among
-    /// them and the sampled neighbours the others need are traced first, then each other vertex is
-    /// interpolated where the rule allows and traced where it does not. The result does not depend
-    /// on how the vertices are split between calls or ordered. `progress` gets the number of
-    /// vertices finished in this call.
+    /// Bakes the vertices of `vertices` not yet baked into `state` (of the scene's vertex count),
+    /// with vertex sampling (decision (f), [`sparse`]): the sampled vertices among them and the
+    /// sampled neighbours the others need are traced first, then each other vertex is interpolated
+    /// where the rule allows and traced where it does not. The result does not depend on how the
+    /// vertices are split between calls or ordered. `progress` gets the number of vertices finished
+    /// in this call.
     pub fn bake_set(
         &self,
         vertices: &[u32],
-        per_vertex: &mut [VertexCut],
-        baked: &mut [bool],
+        state: &mut PartialBake,
         progress: &(dyn Fn(usize) + Sync),
     ) {
-        let n = self.positions.len().min(per_vertex.len()).min(baked.len());
+        let n = self.positions.len().min(state.vertex_count());
         let todo: Vec<u32> = vertices
             .iter()
             .copied()
-            .filter(|&v| (v as usize) < n && !baked[v as usize])
+            .filter(|&v| (v as usize) < n && !state.baked[v as usize])
             .collect();
-        let store = |list: &[u32],
-                     cuts: Vec<VertexCut>,
-                     per_vertex: &mut [VertexCut],
-                     baked: &mut [bool]| {
-            for (&v, cut) in list.iter().zip(cuts) {
-                per_vertex[v as usize] = cut;
-                baked[v as usize] = true;
-            }
-        };
         if self.sampled.len() != n {
-            let cuts = self.bake_vertices(&todo, progress);
-            store(&todo, cuts, per_vertex, baked);
+            self.bake_points(
+                &self.points_of(&todo),
+                None,
+                false,
+                progress,
+                &mut |i, cut| state.store(todo[i] as usize, cut),
+            );
             return;
         }
         // 1. The sampled vertices: those of `todo`, then the sampled neighbours of the others.
@@ -661,121 +592,130 @@ impl<'a> Baker<'a> {
         first.iter().for_each(|&v| wanted[v as usize] = true);
         for &v in &todo {
             for &u in &self.vertex_neighbours[v as usize] {
-                if self.sampled[u as usize] && !baked[u as usize] && !wanted[u as usize] {
+                if self.sampled[u as usize] && !state.baked[u as usize] && !wanted[u as usize] {
                     wanted[u as usize] = true;
                     first.push(u);
                 }
             }
         }
         // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
-        let cuts = self.bake_points(&self.points_of(&first), None, true, &|k| {
-            progress(k.min(own))
-        });
-        store(&first, cuts, per_vertex, baked);
+        self.bake_points(
+            &self.points_of(&first),
+            None,
+            true,
+            &|k| progress(k.min(own)),
+            &mut |i, cut| state.store(first[i] as usize, cut),
+        );
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo
             .iter()
             .copied()
-            .filter(|&v| !baked[v as usize])
+            .filter(|&v| !state.baked[v as usize])
             .collect();
         let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
         let threshold = self.settings.refine.threshold;
         let epsilon = self.settings.cut.epsilon;
-        let blended: Vec<Option<VertexCut>> = {
-            let per_vertex: &[VertexCut] = per_vertex;
-            let cut_of = |u: usize| per_vertex[u].entries.as_slice();
-            rest.par_iter()
-                .map(|&v| {
-                    let v = v as usize;
-                    let weights = sparse::interpolation_weights(
-                        v,
-                        &self.positions,
-                        &self.normals,
-                        &self.vertex_neighbours,
-                        &self.sampled,
-                        max_edge,
-                        threshold,
-                        &self.tree,
-                        &self.ring_prefix,
-                        &cut_of,
-                    )?;
-                    let cuts: Vec<&[(u32, f32)]> =
-                        weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
-                    let w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
-                    let (mut cut, uncovered) = sparse::blend_cuts(
-                        &self.tree,
-                        &cuts,
-                        &w,
-                        self.normals[v],
-                        &self.ring_prefix,
-                        self.hemisphere_totals.at(self.normals[v]),
-                    );
-                    cut.epsilon_used = epsilon;
-                    (uncovered <= threshold).then_some(cut)
-                })
-                .collect()
-        };
         let mut traced = Vec::new();
         let mut interpolated = 0;
-        for (&v, cut) in rest.iter().zip(blended) {
-            match cut {
-                Some(cut) => {
-                    per_vertex[v as usize] = cut;
-                    baked[v as usize] = true;
-                    interpolated += 1;
+        for batch in rest.chunks(BATCH) {
+            let blended: Vec<Option<VertexCut>> = {
+                let cuts = &state.cuts;
+                batch
+                    .par_iter()
+                    .map(|&v| {
+                        let v = v as usize;
+                        // The sampled neighbours' cuts, read back once.
+                        let around: Vec<(u32, Vec<(u32, f32)>)> = self.vertex_neighbours[v]
+                            .iter()
+                            .filter(|&&u| self.sampled[u as usize])
+                            .map(|&u| (u, cuts.cut(u as usize).collect()))
+                            .collect();
+                        let cut_of = |u: usize| {
+                            around
+                                .iter()
+                                .find(|(w, _)| *w as usize == u)
+                                .map_or(&[][..], |(_, c)| c.as_slice())
+                        };
+                        let weights = sparse::interpolation_weights(
+                            v,
+                            &self.positions,
+                            &self.normals,
+                            &self.vertex_neighbours,
+                            &self.sampled,
+                            max_edge,
+                            threshold,
+                            &self.tree,
+                            &self.ring_prefix,
+                            &cut_of,
+                        )?;
+                        let cuts: Vec<&[(u32, f32)]> =
+                            weights.iter().map(|&(u, _)| cut_of(u as usize)).collect();
+                        let w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
+                        let (mut cut, uncovered) = sparse::blend_cuts(
+                            &self.tree,
+                            &cuts,
+                            &w,
+                            self.normals[v],
+                            &self.ring_prefix,
+                            self.hemisphere_totals.at(self.normals[v]),
+                        );
+                        cut.epsilon_used = epsilon;
+                        (uncovered <= threshold).then_some(cut)
+                    })
+                    .collect()
+            };
+            for (&v, cut) in batch.iter().zip(blended) {
+                match cut {
+                    Some(cut) => {
+                        state.store(v as usize, cut);
+                        interpolated += 1;
+                    }
+                    None => traced.push(v),
                 }
-                None => traced.push(v),
             }
         }
         let done = own + interpolated;
         progress(done);
         // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
         // visibility: worked out as each is traced (512 bytes a vertex at 5.625°, so not for all
-        // of them at once).
-        let cuts = {
-            let per_vertex: &[VertexCut] = per_vertex;
-            let agreed = |i: usize| -> Vec<[u64; 2]> {
-                let v = traced[i] as usize;
-                match sparse::anchors(
-                    v,
-                    &self.positions,
-                    &self.normals,
-                    &self.vertex_neighbours,
-                    &self.sampled,
-                    max_edge,
-                ) {
-                    Some(anchors) => {
-                        let bits: Vec<&[[u64; 2]]> = anchors
-                            .iter()
-                            .map(|&u| per_vertex[u as usize].cell_bits.as_slice())
-                            .collect();
-                        sparse::agreed_cells(&bits)
-                    }
-                    None => Vec::new(),
+        // of them at once). The sampled vertices' cell bits serve only this step: taken out here,
+        // and freed after it.
+        let bits = std::mem::take(&mut state.cell_bits);
+        let agreed = |i: usize| -> Vec<[u64; 2]> {
+            let v = traced[i] as usize;
+            match sparse::anchors(
+                v,
+                &self.positions,
+                &self.normals,
+                &self.vertex_neighbours,
+                &self.sampled,
+                max_edge,
+            ) {
+                Some(anchors) => {
+                    let of: Vec<&[[u64; 2]]> = anchors
+                        .iter()
+                        .map(|&u| bits.get(u as usize).map_or(&[][..], Vec::as_slice))
+                        .collect();
+                    sparse::agreed_cells(&of)
                 }
-            };
-            self.bake_points(&self.points_of(&traced), Some(&agreed), false, &|k| {
-                progress(done + k)
-            })
+                None => Vec::new(),
+            }
         };
-        // The sampled vertices' cell bits have served: free them.
-        for c in per_vertex.iter_mut() {
-            c.cell_bits = Vec::new();
-        }
-        store(&traced, cuts, per_vertex, baked);
+        self.bake_points(
+            &self.points_of(&traced),
+            Some(&agreed),
+            false,
+            &|k| progress(done + k),
+            &mut |i, cut| state.store(traced[i] as usize, cut),
+        );
     }
 
     /// Bakes every vertex of the scene's mesh as it is (no refinement); `order` only changes which
     /// finish first, not the result.
     pub fn bake_all(&self, order: Option<&[u32]>, progress: &(dyn Fn(usize) + Sync)) -> Bake {
         let start = std::time::Instant::now();
-        let per_vertex = self.bake_base(order, progress);
-        self.finish(
-            per_vertex,
-            Refinement::default(),
-            self.decisions.clone(),
-            start,
-        )
+        let state = self.bake_base(order, progress);
+        self.finish(state, Refinement::default(), self.decisions.clone(), start)
     }
 
     /// Bakes every vertex, then refines the mesh where visibility changes between vertices
@@ -788,10 +728,10 @@ impl<'a> Baker<'a> {
     }
 
     /// The refinement rounds over `base` (the cuts of every vertex of the scene's mesh).
-    pub fn refine(&self, base: Vec<VertexCut>, start: std::time::Instant) -> Bake {
+    pub fn refine(&self, base: PartialBake, start: std::time::Instant) -> Bake {
         let r = self.settings.refine;
         let mut decisions = self.decisions.clone();
-        let base_count = base.len();
+        let base_count = base.vertex_count();
         if !self.decisions.trace_visibility || r.rounds == 0 || self.ring_prefix.is_empty() {
             decisions.refine_reason = if r.rounds == 0 {
                 "refinement off (0 rounds)".into()
@@ -803,7 +743,7 @@ impl<'a> Baker<'a> {
             return self.finish(base, Refinement::default(), decisions, start);
         }
         let mut mesh = self.scene.mesh.clone();
-        let mut per_vertex = base;
+        let mut state = base;
         // Each new vertex as a blend of at most three imported vertices (the corners of the
         // imported triangle it lies in), so that its rays start on the smooth surface the imported
         // normals describe, as the imported vertices' do, not on the flat facet below it (which
@@ -833,26 +773,28 @@ impl<'a> Baker<'a> {
                 .par_iter()
                 .copied()
                 .filter(|&(_, b)| b >= since)
-                .filter(|&(a, b)| {
-                    let (ca, cb) = (&per_vertex[a as usize], &per_vertex[b as usize]);
-                    let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
-                        .as_dvec3()
-                        .try_normalize()
-                        .unwrap_or(DVec3::Y);
-                    refine::visibility_difference(
-                        &self.tree,
-                        &self.ring_prefix,
-                        &ca.entries,
-                        &cb.entries,
-                        n,
-                    ) > r.threshold
-                })
+                .map_init(
+                    || (Vec::new(), Vec::new()),
+                    |(ca, cb), (a, b)| {
+                        state.cuts.cut_into(a as usize, ca);
+                        state.cuts.cut_into(b as usize, cb);
+                        let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
+                            .as_dvec3()
+                            .try_normalize()
+                            .unwrap_or(DVec3::Y);
+                        let differ =
+                            refine::visibility_difference(&self.tree, &self.ring_prefix, ca, cb, n)
+                                > r.threshold;
+                        differ.then_some((a, b))
+                    },
+                )
+                .flatten()
                 .collect();
             if marked.is_empty() {
                 break;
             }
             let parents = refine::split_marked(&mut mesh, &marked);
-            let first_new = per_vertex.len();
+            let first_new = state.vertex_count();
             since = first_new as u32;
             for &[a, b] in &parents {
                 let mut blend = blend_of(&blends, a);
@@ -884,7 +826,9 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            per_vertex.extend(self.bake_points(&points, None, false, &|_| {}));
+            self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
+                state.store(first_new + i, cut)
+            });
             split_total += parents.len();
             parents_all.extend(parents);
             rounds_done += 1;
@@ -911,31 +855,30 @@ impl<'a> Baker<'a> {
                 triangles: mesh.triangles,
             }
         };
-        self.finish(per_vertex, refinement, decisions, start)
+        self.finish(state, refinement, decisions, start)
     }
 
     fn finish(
         &self,
-        per_vertex: Vec<VertexCut>,
+        state: PartialBake,
         refinement: Refinement,
         mut decisions: Decisions,
         start: std::time::Instant,
     ) -> Bake {
-        let n = per_vertex.len();
-        let interpolated = per_vertex.iter().filter(|c| c.interpolated).count();
+        let PartialBake {
+            mut cuts, records, ..
+        } = state;
+        let n = cuts.vertex_count();
+        let interpolated = records.iter().filter(|r| r.interpolated).count();
         decisions.interpolated_vertices = interpolated;
         decisions.sampling_reason = self.sampling_reason(interpolated);
-        let rays_traced = per_vertex.iter().map(|c| c.rays).sum();
-        let capped_vertices = per_vertex
+        let rays_traced = records.iter().map(|r| r.rays).sum();
+        let capped_vertices = records
             .iter()
-            .filter(|c| c.epsilon_used > self.settings.cut.epsilon)
+            .filter(|r| r.epsilon_used > self.settings.cut.epsilon)
             .count();
-        let max_cut_size = per_vertex
-            .iter()
-            .map(|c| c.entries.len())
-            .max()
-            .unwrap_or(0);
-        let cuts = Cuts::from_owned_vertex_cuts(per_vertex);
+        let max_cut_size = (0..n).map(|v| cuts.cut_len(v)).max().unwrap_or(0);
+        cuts.shrink_to_fit();
         let bytes = cuts.bytes() + refinement.parents.len() * 8 + refinement.triangles.len() * 12;
         let stats = BakeStats {
             vertices: n,

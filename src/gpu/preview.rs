@@ -122,7 +122,7 @@ impl GpuPreview {
             .collect();
         let nodes = tree.nodes();
         let mut cut_offsets = Vec::with_capacity(vertex_count + 1);
-        let mut cut_entries: Vec<[u32; 4]> = Vec::with_capacity(cuts.nodes.len());
+        let mut cut_entries: Vec<[u32; 4]> = Vec::with_capacity(cuts.node_count());
         cut_offsets.push(0u32);
         for v in 0..vertex_count {
             for (k, vis) in cuts.cut(v) {

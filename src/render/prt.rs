@@ -501,7 +501,7 @@ impl<'a> Prt<'a> {
         settings: PrtSettings,
     ) -> Self {
         let mut span_offsets = Vec::with_capacity(cuts.vertex_count() + 1);
-        let mut spans = Vec::with_capacity(cuts.nodes.len());
+        let mut spans = Vec::with_capacity(cuts.node_count());
         span_offsets.push(0);
         for v in 0..cuts.vertex_count() {
             spans.extend(cuts.spans(v, tree));

@@ -176,10 +176,9 @@ fn baking_the_view_first_gives_the_same_transfer() {
     );
     // Only the view's vertices: the others get empty cuts (not needed by this view).
     // As the app does it ([`Baker::bake_set`], with vertex sampling).
-    let mut per_vertex = vec![Default::default(); scene.mesh.positions.len()];
-    let mut baked = vec![false; scene.mesh.positions.len()];
-    baker.bake_set(&first, &mut per_vertex, &mut baked, &|_| {});
-    let partial = Cuts::from_vertex_cuts(&per_vertex);
+    let mut state = glint::bake::PartialBake::new(scene.mesh.positions.len());
+    baker.bake_set(&first, &mut state, &|_| {});
+    let partial = state.cuts;
     let full = baker.bake_all(None, &|_| {});
     let lobes = LobeSet::new(
         LobeLayout::Isotropic { count: 24 },

@@ -418,10 +418,11 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
         .collect();
     let n = scene.mesh.positions.len();
     let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
-    let mut per_vertex = vec![glint::bake::VertexCut::default(); n];
-    let mut baked = vec![false; n];
-    baker.bake_set(&sample, &mut per_vertex, &mut baked, &|_| {});
+    let mut state = glint::bake::PartialBake::new(n);
+    baker.bake_set(&sample, &mut state, &|_| {});
     let traced = tracing.bake_vertices(&sample, &|_| {});
+    // Packed as a bake stores them (V quantised to 16 bits).
+    let traced_packed = glint::bake::Cuts::from_vertex_cuts(&traced);
     // Weighted |V − V_true| and the weighted irradiance, per sample vertex.
     let error = |v: u32, entries: &[(u32, f32)]| -> (f64, f64) {
         let (origin, normal) = baker.ray_origin(v as usize).unwrap();
@@ -455,7 +456,7 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
     let (mut rays, mut rays_traced, mut same) = (0u64, 0u64, 0);
     let (mut e_all, mut e_all_traced, mut w_all) = (0.0, 0.0, 0.0);
     for (i, &v) in sample.iter().enumerate() {
-        let cut = &per_vertex[v as usize];
+        let cut = state.vertex(v as usize);
         let (e, w) = error(v, &cut.entries);
         let (et, _) = error(v, &traced[i].entries);
         (e_all, e_all_traced, w_all) = (e_all + e, e_all_traced + et, w_all + w);
@@ -472,7 +473,8 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
                 (e_assist + e, e_traced_assist + et, w_assist + w);
         } else {
             assert_eq!(
-                cut.entries, traced[i].entries,
+                cut.entries,
+                traced_packed.cut(i).collect::<Vec<_>>(),
                 "vertex {v}: traced alone, so as tracing gives"
             );
             same += 1;
@@ -514,15 +516,15 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
         "all {e_all} against {e_all_traced}"
     );
     // The same set in two parts, in another order: the same cuts.
-    let mut again = vec![glint::bake::VertexCut::default(); n];
-    let mut baked_again = vec![false; n];
+    let mut again = glint::bake::PartialBake::new(n);
     let (a, b) = sample.split_at(sample.len() / 3);
     let reversed: Vec<u32> = b.iter().rev().copied().collect();
-    baker.bake_set(&reversed, &mut again, &mut baked_again, &|_| {});
-    baker.bake_set(a, &mut again, &mut baked_again, &|_| {});
+    baker.bake_set(&reversed, &mut again, &|_| {});
+    baker.bake_set(a, &mut again, &|_| {});
     for &v in &sample {
         assert_eq!(
-            again[v as usize], per_vertex[v as usize],
+            again.vertex(v as usize),
+            state.vertex(v as usize),
             "vertex {v} depends on how the set was split"
         );
     }
