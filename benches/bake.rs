@@ -12,7 +12,9 @@
 //! - `matrix`: `glint bake`'s default bake (decisions, refinement) of each of bunny, teapot,
 //!   suzanne, dragon.glb and dragon_100k under each of studio_1k, courtyard_1k and interior_1k:
 //!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices; with
-//!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side.
+//!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side;
+//!   with `traced`, each bake also with every vertex traced in full (no vertex sampling, and no new
+//!   vertex of the refinement taking the cells its edge's ends agree on), side by side.
 //! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
 //!   per run (two runs, so the second shows warm caches): the bake's seconds (decisions and
 //!   refinement included), rays and the refined vertex count; then, for the isotropic J = 24 lobe
@@ -53,7 +55,13 @@ fn main() {
             .into_iter()
             .filter(|m| sections.iter().any(|s| s == m))
             .collect();
-        let side_by_side = sections.iter().any(|s| s == "single");
+        let side_by_side = if sections.iter().any(|s| s == "single") {
+            Some(Baseline::OneRayAtATime)
+        } else if sections.iter().any(|s| s == "traced") {
+            Some(Baseline::EveryVertexTraced)
+        } else {
+            None
+        };
         matrix(
             if meshes.is_empty() { &MESHES } else { &meshes },
             if maps.is_empty() { &MAPS } else { &maps },
@@ -236,11 +244,24 @@ fn rays() {
 const MESHES: [&str; 5] = ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"];
 const MAPS: [&str; 3] = ["studio_1k", "courtyard_1k", "interior_1k"];
 
-/// `side_by_side`: each bake also with the tracer one ray at a time (`Tracer::set_packets(false)`),
-/// in the same run.
-fn matrix(meshes: &[&str], maps: &[&str], side_by_side: bool) {
+/// What the matrix bakes beside the default bake, in the same run.
+#[derive(Clone, Copy, PartialEq)]
+enum Baseline {
+    /// The tracer one ray at a time (`Tracer::set_packets(false)`).
+    OneRayAtATime,
+    /// Every vertex traced in full (`RefineSettings::interpolate` off).
+    EveryVertexTraced,
+}
+
+/// `side_by_side`: each bake also as the baseline, in the same run.
+fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
+    let baseline = match side_by_side {
+        Some(Baseline::OneRayAtATime) => "bake, one ray at a time (s)",
+        Some(Baseline::EveryVertexTraced) => "bake, every vertex traced (s; rays)",
+        None => "-",
+    };
     println!(
-        "| mesh | map | bake, one ray at a time (s) | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
+        "| mesh | map | {baseline} | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for &mesh in meshes {
@@ -248,31 +269,42 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: bool) {
             glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         for map in maps {
             let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
-            let bake = |packets: bool| {
+            let bake = |baseline: Option<Baseline>| {
                 median_of(3, || {
-                    let mut baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
-                    baker.tracer.set_packets(packets);
+                    let mut settings = BakeSettings::default();
+                    settings.refine.interpolate = baseline != Some(Baseline::EveryVertexTraced);
+                    let mut baker = Baker::new(&scene, &env, settings).unwrap();
+                    baker
+                        .tracer
+                        .set_packets(baseline != Some(Baseline::OneRayAtATime));
                     baker.bake_refined(None, &|_| {}).stats
                 })
             };
-            let (single_secs, single) = if side_by_side {
-                let (t, s) = bake(false);
-                (t, Some(s))
-            } else {
-                (f64::NAN, None)
+            let (base_secs, base) = match side_by_side {
+                Some(b) => {
+                    let (t, s) = bake(Some(b));
+                    (t, Some(s))
+                }
+                None => (f64::NAN, None),
             };
-            let (secs, stats) = bake(true);
+            let (secs, stats) = bake(None);
             // Packets and single rays disagree only for rays within rounding of a triangle's edge
             // (about 1 in 10⁵), which can move a boundary cell: the rays differ as little.
-            if let Some(s) = single {
+            if let (Some(s), Some(Baseline::OneRayAtATime)) = (&base, side_by_side) {
                 let (a, b) = (s.rays_traced as f64, stats.rays_traced as f64);
                 assert!(
                     (a - b).abs() <= 1e-4 * b,
                     "{a} rays one at a time, {b} in packets"
                 );
             }
+            let base = match (base, side_by_side) {
+                (Some(s), Some(Baseline::EveryVertexTraced)) => {
+                    format!("{base_secs:.2}; {:.1} M", s.rays_traced as f64 / 1e6)
+                }
+                _ => format!("{base_secs:.2}"),
+            };
             println!(
-                "| {mesh} | {map} | {single_secs:.2} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
+                "| {mesh} | {map} | {base} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
                 stats.decision_seconds,
                 scene.mesh.positions.len(),
                 stats.vertices,

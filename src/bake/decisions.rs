@@ -14,10 +14,12 @@
 //!   BRDF adds its own floor ([`brdf_resolution`]: texels at most σ/2 wide); the finer of the two
 //!   wins.
 //! - (d) [`decide_cell`]: how large may a visibility cell (one ray, V ∈ {0, 1} over the cell) be
-//!   for this scene under this environment? Measured at probe vertices: the irradiance with cells
-//!   of each candidate size against the irradiance with a ray per direction; the coarsest within 2
-//!   % wins (else the closer). Small bright lights (a studio's softboxes, a window) whose
-//!   visibility a coarse cell gets wrong push it finer; a broad sky does not.
+//!   for this scene under this environment, and are cells at shadow edges traced again finer?
+//!   Measured at probe vertices on the cuts the bake would make there: the irradiance with each
+//!   candidate (11.25° cells; 5.625° cells refined at shadow edges) against the irradiance with a
+//!   ray per direction; the cheaper within 2 % wins (else the closer). Small bright lights (a
+//!   studio's softboxes, a window) whose visibility a coarse cell gets wrong push it finer; a broad
+//!   sky does not.
 //! - (e) and (f) are made while baking, from the traced cuts: the mesh refinement
 //!   ([`super::refine`]) and the vertex sampling ([`super::sparse`]); their reasons are stored here
 //!   too.
@@ -25,6 +27,7 @@
 //! Inputs: the mesh, the tracer, the environment, the direction set's tree. Outputs: decisions with
 //! reasons (serialisable, stored in the bake). No IO.
 
+use super::cuts::{CellNeighbours, CutScratch, CutSettings, Prior, vertex_cut};
 use super::tracer::Tracer;
 use crate::light::{LightSource, texel_radiance_from};
 use crate::scene::Mesh;
@@ -64,8 +67,9 @@ pub struct Decisions {
     /// (d) Visibility cell size (degrees; 0 = a ray per direction).
     pub cell_deg: f64,
     pub cell_reason: String,
-    /// (candidate cell size in degrees, relative RMS irradiance error at the probe vertices).
-    pub cell_probe_errors: Vec<(f64, f64)>,
+    /// (candidate cell size in degrees, its boundary levels, relative RMS irradiance error at the
+    /// probe vertices), per candidate of [`CELL_CANDIDATES`].
+    pub cell_probe_errors: Vec<(f64, u32, f64)>,
     /// (d) Boundary refinement of the cells: how many times a cell beside a cell of the other
     /// visibility is traced again as cells half as wide, and why.
     #[serde(default)]
@@ -365,11 +369,19 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
     (RESOLUTION_REFERENCE, reason, errors)
 }
 
-/// Candidate visibility-cell sizes for (d), coarsest first. 22.5° is not a candidate: on studio_1k
-/// it put the bunny's frame 7.5 % off the Monte Carlo truth (`glint study`), and the specular part,
-/// which the irradiance probe does not see, suffers first.
-pub const CELL_CANDIDATES_DEG: [f64; 2] = [11.25, 5.625];
-/// Largest relative RMS irradiance error at the probe vertices that a cell size may cause.
+/// Candidate visibility cells for (d), cheapest first: (cell size in degrees, boundary levels).
+///
+/// 22.5° is not a candidate: on studio_1k it put the bunny's frame 7.5 % off the Monte Carlo truth
+/// (`glint study`), and the specular part, which the irradiance probe does not see, suffers first.
+/// Where 11.25° cells miss shadows, 5.625° cells are refined at shadow edges to 2.8125° and
+/// 1.40625° ([`crate::bake::CutSettings::boundary_levels`]): against a ray per direction the
+/// bunny's whole bake under studio_1k is then 0.02 % off. Refining 11.25° cells instead halves the
+/// rays (dragon.glb under courtyard_1k: 42 M against 93 M) but is not a candidate, because it
+/// costs accuracy: the bunny's bake 0.61 % off, dragon_100k's PRT frame under studio_1k 2.75 %
+/// off the Monte Carlo reference against 2.46 % (`tests/it/bake_visibility.rs`,
+/// docs/benchmarks.md); a user who wants that trade sets `--cell-deg 11.25 --boundary-levels 2`.
+pub const CELL_CANDIDATES: [(f64, u32); 2] = [(11.25, 0), (5.625, 2)];
+/// Largest relative RMS irradiance error at the probe vertices that a cell choice may cause.
 pub const CELL_TOLERANCE: f64 = 0.02;
 /// Probe vertices for (d), spread evenly over the vertex list.
 pub const CELL_PROBES: usize = 128;
@@ -399,22 +411,46 @@ pub fn cell_size_words(tree: &LightTree, max_leaves: usize) -> String {
     }
 }
 
-/// (d): (cell size in degrees, reason, probe errors).
+/// A candidate of (d) in words: "11.25° cells" or "11.25° cells, 2 boundary levels".
+fn cell_words(deg: f64, levels: u32) -> String {
+    if levels == 0 {
+        format!("{deg}° cells")
+    } else {
+        format!("{deg}° cells, {levels} boundary levels")
+    }
+}
+
+/// What decision (d) chose: the visibility cell size and its boundary refinement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellDecision {
+    /// Cell size in degrees.
+    pub deg: f64,
+    /// Boundary levels ([`crate::bake::CutSettings::boundary_levels`]).
+    pub levels: u32,
+    pub reason: String,
+    /// Per candidate of [`CELL_CANDIDATES`]: (degrees, levels, relative RMS irradiance error at the
+    /// probe vertices).
+    pub errors: Vec<(f64, u32, f64)>,
+}
+
+/// (d): the visibility cell size and its boundary levels.
 ///
 /// At [`CELL_PROBES`] vertices (ray origins and normals in `origins`) the irradiance of the
-/// environment's luminance (at rotation 0) is summed three ways: with a ray per direction (the
-/// reference), and with cells of each candidate size, where, as in the bake, one ray along the
-/// cell's mean direction decides V for the whole cell. Cells inside a coarsest cell whose cone is
-/// free of geometry ([`Tracer::cone_free`], exact) are visible for every size and cost no ray. The
-/// coarsest candidate whose relative RMS error over the probes is within [`CELL_TOLERANCE`] is
-/// chosen; if none is, the one measured closest, and the reason says how far off it stays.
+/// environment's luminance (at rotation 0) is summed over the cut the bake would make there (the
+/// settings `cut`: ε, the cap, the cone tests) with a ray per direction (the reference) and with
+/// each candidate of [`CELL_CANDIDATES`], where one ray along a cell's mean direction decides V for
+/// the whole cell and, with boundary levels, cells at a shadow edge are traced again finer. The
+/// first (cheapest) candidate whose relative RMS error over the probes is within
+/// [`CELL_TOLERANCE`] is chosen; if none is, the one measured closest, and the reason says how far
+/// off it stays.
 pub fn decide_cell(
     env: &LightSource,
     set: &DirectionSet,
     tree: &LightTree,
     origins: &[(DVec3, DVec3)],
     tracer: &Tracer,
-) -> (f64, String, Vec<(f64, f64)>) {
+    cut: &CutSettings,
+) -> CellDecision {
     let radiance = texel_radiance_from(env, set, 0.0);
     let luminance: Vec<f64> = tree
         .leaf_texels()
@@ -422,139 +458,130 @@ pub fn decide_cell(
         .map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0)
         .collect();
     let resolution = set.resolution();
-    let cells: Vec<Vec<usize>> = CELL_CANDIDATES_DEG
-        .iter()
-        .map(|&deg| nodes_of_at_most(tree, cell_leaves(resolution, deg) as u32, 0))
+    // The reference (a ray per direction), then the candidates.
+    let configs: Vec<(CutSettings, CellNeighbours)> = std::iter::once((0.0, 0))
+        .chain(CELL_CANDIDATES)
+        .map(|(deg, levels)| {
+            let leaves = cell_leaves(resolution, deg);
+            let settings = CutSettings {
+                cell_leaves: leaves,
+                boundary_levels: levels,
+                ..*cut
+            };
+            (settings, CellNeighbours::new(set, tree, leaves, levels))
+        })
         .collect();
+    let max_levels = CELL_CANDIDATES.iter().map(|c| c.1).max().unwrap_or(0);
     let count = origins.len().min(CELL_PROBES);
     let probes: Vec<(DVec3, DVec3)> = (0..count)
         .map(|i| origins[(2 * i + 1) * origins.len() / (2 * count)])
         .collect();
     let nodes = tree.nodes();
-    // Per probe: (reference irradiance, irradiance per candidate).
-    let sums: Vec<(f64, Vec<f64>)> = probes
+    // Per probe: the irradiance of the reference and of each candidate.
+    let sums: Vec<Vec<f64>> = probes
         .par_iter()
-        .map(|&(origin, normal)| {
-            let apex: Vec3A = origin.as_vec3().into();
-            let nf: Vec3A = normal.as_vec3().into();
-            let weight = |l: usize| luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0);
-            let node_weight = |k: usize| {
-                let node = nodes[k];
-                (node.first as usize..(node.first + node.count) as usize)
-                    .map(weight)
-                    .sum::<f64>()
-            };
-            let mut reference = 0.0;
-            let mut per_candidate = vec![0.0; cells.len()];
-            for &k in &cells[0] {
-                let node = nodes[k];
-                let w = node_weight(k);
-                if w <= 0.0 {
-                    continue;
-                }
-                if tracer.cone_free(
-                    apex,
-                    nf,
-                    node.mean_direction.as_vec3().into(),
-                    node.cone_cos as f32,
-                ) {
-                    reference += w;
-                    per_candidate.iter_mut().for_each(|e| *e += w);
-                    continue;
-                }
-                for l in node.first as usize..(node.first + node.count) as usize {
-                    let wl = weight(l);
-                    if wl > 0.0
-                        && !tracer.occluded(apex, tree.leaf_directions()[l].as_vec3().into())
-                    {
-                        reference += wl;
-                    }
-                }
-                for (c, e) in per_candidate.iter_mut().enumerate() {
-                    // (For the coarsest candidate that is the cell k itself.)
-                    for s in nodes_of_at_most(
-                        tree,
-                        cell_leaves(resolution, CELL_CANDIDATES_DEG[c]) as u32,
-                        k,
-                    ) {
-                        let ws = node_weight(s);
-                        if ws > 0.0
-                            && !tracer.occluded(apex, nodes[s].mean_direction.as_vec3().into())
-                        {
-                            *e += ws;
-                        }
-                    }
-                }
-            }
-            (reference, per_candidate)
-        })
+        .map_init(
+            || CutScratch::new(tree.leaf_count(), max_levels),
+            |scratch, &(origin, normal)| {
+                configs
+                    .iter()
+                    .map(|(settings, neighbours)| {
+                        let prior = Prior {
+                            cells: &[],
+                            agreed: &[],
+                            record: false,
+                        };
+                        let made = vertex_cut(
+                            origin, normal, 0.0, tree, tracer, settings, neighbours, scratch, prior,
+                        );
+                        made.entries
+                            .iter()
+                            .map(|&(k, v)| {
+                                let node = nodes[k as usize];
+                                let range = node.first as usize..(node.first + node.count) as usize;
+                                v as f64
+                                    * range
+                                        .map(|l| {
+                                            luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0)
+                                        })
+                                        .sum::<f64>()
+                            })
+                            .sum()
+                    })
+                    .collect()
+            },
+        )
         .collect();
     let denominator: f64 = sums
         .iter()
-        .map(|(r, _)| r * r)
+        .map(|s| s[0] * s[0])
         .sum::<f64>()
         .max(f64::MIN_POSITIVE);
-    let errors: Vec<(f64, f64)> = CELL_CANDIDATES_DEG
+    let errors: Vec<(f64, u32, f64)> = CELL_CANDIDATES
         .iter()
         .enumerate()
-        .map(|(c, &deg)| {
-            (
-                deg,
-                (sums.iter().map(|(r, e)| (e[c] - r).powi(2)).sum::<f64>() / denominator).sqrt(),
-            )
+        .map(|(c, &(deg, levels))| {
+            let squared: f64 = sums.iter().map(|s| (s[c + 1] - s[0]).powi(2)).sum();
+            (deg, levels, (squared / denominator).sqrt())
         })
         .collect();
     let listed = errors
         .iter()
-        .map(|(d, e)| format!("{d}° {:.2} %", e * 100.0))
+        .map(|&(d, l, e)| format!("{} {:.2} %", cell_words(d, l), e * 100.0))
         .collect::<Vec<_>>()
-        .join(", ");
-    if let Some(&(deg, _)) = errors.iter().find(|(_, e)| *e <= CELL_TOLERANCE) {
-        let reason = format!(
-            "{deg}° cells ({}): at {count} probe vertices the irradiance with one ray per cell is within {:.0} % (RMS) of a ray per direction ({listed})",
-            cell_size_words(tree, cell_leaves(resolution, deg)),
-            CELL_TOLERANCE * 100.0
-        );
-        return (deg, reason, errors);
-    }
-    // None is within tolerance: the candidate measured closest (the coarser on a tie). Finer cells
+        .join("; ");
+    let chosen = errors.iter().position(|e| e.2 <= CELL_TOLERANCE);
+    // None is within tolerance: the candidate measured closest (the cheaper on a tie). Finer cells
     // are closer on average, but not always at the probes (teapot under interior_1k: 11.25° 3.3 %,
     // 5.625° 3.5 %), and then the extra rays buy nothing.
-    let (deg, _) =
-        errors
-            .iter()
-            .copied()
-            .fold((CELL_CANDIDATES_DEG[0], f64::INFINITY), |best, e| {
-                if e.1 < best.1 { e } else { best }
-            });
-    let reason = format!(
-        "{deg}° cells ({}), the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
-        cell_size_words(tree, cell_leaves(resolution, deg)),
-        CELL_TOLERANCE * 100.0
-    );
-    (deg, reason, errors)
+    let c = chosen.unwrap_or_else(|| {
+        (0..errors.len()).fold(0, |best, c| {
+            if errors[c].2 < errors[best].2 {
+                c
+            } else {
+                best
+            }
+        })
+    });
+    let (deg, levels, _) = errors[c];
+    let cells = cell_size_words(tree, cell_leaves(resolution, deg));
+    let edges = if levels > 0 {
+        format!(
+            ", cells at shadow edges traced again at {}° and {}°",
+            deg / 2.0,
+            deg / 4.0
+        )
+    } else {
+        String::new()
+    };
+    let reason = match chosen {
+        Some(_) => format!(
+            "{deg}° cells ({cells}){edges}: the cheapest whose irradiance at {count} probe vertices is within {:.0} % (RMS) of a ray per direction ({listed})",
+            CELL_TOLERANCE * 100.0
+        ),
+        None => format!(
+            "{deg}° cells ({cells}){edges}, the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
+            CELL_TOLERANCE * 100.0
+        ),
+    };
+    CellDecision {
+        deg,
+        levels,
+        reason,
+        errors,
+    }
 }
 
-/// Boundary levels used where (d) finds that the coarsest cells miss shadows.
-pub const BOUNDARY_LEVELS: u32 = 2;
-
 /// (d), second part: how many times cells at a shadow edge are traced again as cells half as wide
-/// ([`crate::bake::CutSettings::boundary_levels`]), and why.
-///
-/// One ray per cell point-samples visibility, so a shadow edge that crosses a cell moves to the
-/// cell's border, and the error does not average out over a light as the irradiance's does: a sharp
-/// lobe's highlight sees it whole. Where the environment's small bright lights made the coarsest
-/// candidate miss its shadows at the probes (the cell decided is finer), their shadow edges are
-/// sharp, and the cells beside a cell of the other visibility are traced at half and at a quarter
-/// of the cell's width ([`BOUNDARY_LEVELS`]). Where the coarsest cell is within tolerance the light
-/// is soft and the refinement is not made (dragon_100k under courtyard_1k: it would double the
-/// rays).
+/// ([`crate::bake::CutSettings::boundary_levels`]), and why: as set, or as [`decide_cell`] decided
+/// with the cell size (`decided`: its levels and reason). One ray per cell point-samples
+/// visibility, so a shadow edge that crosses a cell moves to the cell's border, and the error does
+/// not average out over a light as the irradiance's does: a sharp lobe's highlight sees it whole.
 pub fn decide_boundary(
     explicit: Option<u32>,
     cell_explicit: bool,
     traced: bool,
-    cell_deg: f64,
-    probe_errors: &[(f64, f64)],
+    decided: Option<&CellDecision>,
 ) -> (u32, String) {
     if let Some(levels) = explicit {
         return (
@@ -568,25 +595,28 @@ pub fn decide_boundary(
     if cell_explicit {
         return (0, "no boundary refinement: the cell size was set explicitly (set the levels too to refine)".into());
     }
-    let coarsest = CELL_CANDIDATES_DEG[0];
-    match probe_errors.first() {
-        Some(&(deg, error)) if cell_deg < coarsest && error > CELL_TOLERANCE => (
-            BOUNDARY_LEVELS,
-            format!(
-                "cells at shadow edges traced again at {}° and {}°: {deg}° cells missed {:.1} % of the irradiance at the probes, so small bright lights cast sharp shadows, which a ray per cell moves to the cells' borders",
-                cell_deg / 2.0,
-                cell_deg / 4.0,
-                error * 100.0
-            ),
-        ),
-        _ => (
+    let Some(d) = decided else {
+        return (0, "no boundary refinement".into());
+    };
+    let (deg0, _, error0) = d.errors.first().copied().unwrap_or((d.deg, 0, 0.0));
+    if d.levels == 0 {
+        return (
             0,
             format!(
-                "no boundary refinement: {coarsest}° cells are within {:.0} % at the probes, so the light is soft and shadow edges blur over a cell",
+                "no boundary refinement: {deg0}° cells are within {:.0} % at the probes, so the light is soft and shadow edges blur over a cell",
                 CELL_TOLERANCE * 100.0
             ),
-        ),
+        );
     }
+    (
+        d.levels,
+        format!(
+            "cells at shadow edges traced again at {}° and {}°: {deg0}° cells missed {:.1} % of the irradiance at the probes, so small bright lights cast sharp shadows, which a ray per cell moves to the cells' borders",
+            d.deg / 2.0,
+            d.deg / 4.0,
+            error0 * 100.0
+        ),
+    )
 }
 
 /// The largest nodes under `root` covering at most `max_leaves` leaves (leaves always qualify), in
@@ -610,26 +640,35 @@ pub(crate) fn nodes_of_at_most(tree: &LightTree, max_leaves: u32, root: usize) -
 mod tests {
     use super::*;
 
+    fn decided(deg: f64, levels: u32, errors: &[(f64, u32, f64)]) -> CellDecision {
+        CellDecision {
+            deg,
+            levels,
+            reason: String::new(),
+            errors: errors.to_vec(),
+        }
+    }
+
     #[test]
     fn boundary_refinement_follows_the_cell_decision() {
-        let (coarse, fine) = (CELL_CANDIDATES_DEG[0], CELL_CANDIDATES_DEG[1]);
-        // The coarsest cell missed shadows: sharp lights, refine.
-        let missed = [(coarse, 2.0 * CELL_TOLERANCE), (fine, 0.5 * CELL_TOLERANCE)];
-        assert_eq!(
-            decide_boundary(None, false, true, fine, &missed).0,
-            BOUNDARY_LEVELS
+        // The coarsest cells missed shadows: sharp lights, the finer cells refined as decided.
+        let missed = decided(
+            5.625,
+            2,
+            &[(11.25, 0, 2.0 * CELL_TOLERANCE), (5.625, 2, 0.5 * CELL_TOLERANCE)],
         );
-        // Within tolerance at the coarsest: soft light, no refinement.
-        let soft = [(coarse, 0.5 * CELL_TOLERANCE), (fine, 0.2 * CELL_TOLERANCE)];
-        assert_eq!(decide_boundary(None, false, true, coarse, &soft).0, 0);
-        // Explicit levels win; no tracing or an explicit cell (no probe) means none.
-        assert_eq!(decide_boundary(Some(1), false, true, coarse, &soft).0, 1);
-        assert_eq!(decide_boundary(None, false, false, coarse, &[]).0, 0);
-        assert_eq!(decide_boundary(None, true, true, fine, &[]).0, 0);
-        let (_, reason) = decide_boundary(None, false, true, fine, &missed);
+        let (levels, reason) = decide_boundary(None, false, true, Some(&missed));
+        assert_eq!(levels, 2);
         assert!(
-            reason.contains("2.8125°") && reason.contains("1.40625°"),
+            reason.contains("2.8125°") && reason.contains("1.40625°") && reason.contains("4.0 %"),
             "{reason}"
         );
+        // Within tolerance at the coarsest: soft light, no refinement.
+        let soft = decided(11.25, 0, &[(11.25, 0, 0.5 * CELL_TOLERANCE)]);
+        assert_eq!(decide_boundary(None, false, true, Some(&soft)).0, 0);
+        // Explicit levels win; no tracing or an explicit cell (no probe) means none.
+        assert_eq!(decide_boundary(Some(1), false, true, Some(&soft)).0, 1);
+        assert_eq!(decide_boundary(None, false, false, None).0, 0);
+        assert_eq!(decide_boundary(None, true, true, None).0, 0);
     }
 }

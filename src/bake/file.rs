@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 /// Current format version; bump on any change of layout or meaning, or of how the same inputs are
 /// baked (so that a bake made the old way is rebuilt, not reused). 6: vertices traced after all
 /// take their sampled neighbours' agreed visibility cells.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
 const MAGIC: &[u8; 8] = b"GLINTBAK";
 
 /// What a bake was made from and how.

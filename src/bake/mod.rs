@@ -264,7 +264,7 @@ impl<'a> Baker<'a> {
         // sampling set (f) need nothing of it: side by side.
         let interpolate = trace_visibility && settings.refine.interpolate;
         let (
-            (cell_deg, cell_reason, cell_probe_errors),
+            (cell_deg, cell_reason, cell_decision),
             ((frame_source, tangents, frame_reason), ring_prefix, (vertex_neighbours, sampled)),
         ) = rayon::join(
             || match settings.cell_deg {
@@ -274,16 +274,16 @@ impl<'a> Baker<'a> {
                         "set explicitly to {deg}° ({})",
                         decisions::cell_size_words(&tree, decisions::cell_leaves(resolution, deg))
                     ),
-                    Vec::new(),
+                    None,
                 ),
                 None if !trace_visibility => {
-                    let deg = decisions::CELL_CANDIDATES_DEG[0];
+                    let deg = decisions::CELL_CANDIDATES[0].0;
                     (
                         deg,
                         format!(
                             "{deg}°: no visibility is traced, so the cell size does not matter"
                         ),
-                        Vec::new(),
+                        None,
                     )
                 }
                 None => {
@@ -292,7 +292,15 @@ impl<'a> Baker<'a> {
                         .zip(&normals)
                         .map(|(p, n)| (*p + *n * offset, *n))
                         .collect();
-                    decisions::decide_cell(&source, &set, &tree, &origins, &tracer)
+                    let d = decisions::decide_cell(
+                        &source,
+                        &set,
+                        &tree,
+                        &origins,
+                        &tracer,
+                        &settings.cut,
+                    );
+                    (d.deg, d.reason.clone(), Some(d))
                 }
             },
             || {
@@ -324,8 +332,7 @@ impl<'a> Baker<'a> {
             settings.boundary_levels,
             settings.cell_deg.is_some(),
             trace_visibility,
-            cell_deg,
-            &cell_probe_errors,
+            cell_decision.as_ref(),
         );
         settings.cut.boundary_levels = boundary_levels;
         settings.boundary_levels = Some(boundary_levels);
@@ -351,7 +358,7 @@ impl<'a> Baker<'a> {
             resolution_probe_errors: probe_errors,
             cell_deg,
             cell_reason,
-            cell_probe_errors,
+            cell_probe_errors: cell_decision.map(|d| d.errors).unwrap_or_default(),
             boundary_levels,
             boundary_reason,
             refine_reason: String::new(),
@@ -826,7 +833,32 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
+            // A new vertex lies between its edge's ends: where both know a visibility cell and
+            // agree on it, it takes theirs instead of casting its own ray (as a traced vertex takes
+            // its sampled neighbours', decision (f)); the rest it traces, shadow edges included.
+            let parent_bits: Vec<Vec<[u64; 2]>> = if r.interpolate {
+                parents
+                    .par_iter()
+                    .map_init(
+                        || (Vec::new(), Vec::new()),
+                        |(ea, eb), &[a, b]| {
+                            state.cuts.cut_into(a as usize, ea);
+                            state.cuts.cut_into(b as usize, eb);
+                            let bits = [
+                                cuts::cut_cell_bits(&self.tree, ea, &self.cells),
+                                cuts::cut_cell_bits(&self.tree, eb, &self.cells),
+                            ];
+                            sparse::agreed_cells(&[&bits[0], &bits[1]])
+                        },
+                    )
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let agreed = |i: usize| parent_bits.get(i).cloned().unwrap_or_default();
+            let agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)> =
+                (!parent_bits.is_empty()).then_some(&agreed);
+            self.bake_points(&points, agreed, false, &|_| {}, &mut |i, cut| {
                 state.store(first_new + i, cut)
             });
             split_total += parents.len();

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use glint::bake::{BakeSettings, Baker, Cuts, file};
+use glint::bake::{BakeSettings, Baker, file};
 use glint::light::LightSums;
 use glint::raster::visible_vertices;
 use glint::sphere::{LobeLayout, LobeSet, srbf};
