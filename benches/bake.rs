@@ -13,8 +13,8 @@
 //!   suzanne, dragon.glb and dragon_100k under each of studio_1k, courtyard_1k and interior_1k:
 //!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices; with
 //!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side;
-//!   with `traced`, each bake also with every vertex traced in full (no vertex sampling, and no new
-//!   vertex of the refinement taking the cells its edge's ends agree on), side by side.
+//!   with `traced`, each bake also with every vertex traced in full (no vertex sampling, decision
+//!   (f)), side by side.
 //! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
 //!   per run (two runs, so the second shows warm caches): the bake's seconds (decisions and
 //!   refinement included), rays and the refined vertex count; then, for the isotropic J = 24 lobe
@@ -256,14 +256,17 @@ enum Baseline {
 /// `side_by_side`: each bake also as the baseline, in the same run.
 fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
     let baseline = match side_by_side {
-        Some(Baseline::OneRayAtATime) => "bake, one ray at a time (s)",
-        Some(Baseline::EveryVertexTraced) => "bake, every vertex traced (s; rays)",
-        None => "-",
+        Some(Baseline::OneRayAtATime) => " bake, one ray at a time (s) |",
+        Some(Baseline::EveryVertexTraced) => " bake, every vertex traced (s; rays) |",
+        None => "",
     };
     println!(
-        "| mesh | map | {baseline} | bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
+        "| mesh | map |{baseline} bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "|---|---|{}---|---|---|---|---|---|",
+        if baseline.is_empty() { "" } else { "---|" }
+    );
     for &mesh in meshes {
         let scene =
             glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
@@ -299,12 +302,13 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
             }
             let base = match (base, side_by_side) {
                 (Some(s), Some(Baseline::EveryVertexTraced)) => {
-                    format!("{base_secs:.2}; {:.1} M", s.rays_traced as f64 / 1e6)
+                    format!(" {base_secs:.2}; {:.1} M |", s.rays_traced as f64 / 1e6)
                 }
-                _ => format!("{base_secs:.2}"),
+                (Some(_), _) => format!(" {base_secs:.2} |"),
+                (None, _) => String::new(),
             };
             println!(
-                "| {mesh} | {map} | {base} | {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
+                "| {mesh} | {map} |{base} {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
                 stats.decision_seconds,
                 scene.mesh.positions.len(),
                 stats.vertices,

@@ -288,37 +288,12 @@ fn cell_bits(
     entries: &[(u32, f32)],
     cells: &[(u32, u32, u32)],
 ) -> Vec<[u64; 2]> {
-    let stamped = |first: u32| {
-        (scratch.stamp[first as usize] == scratch.generation)
-            .then(|| scratch.visible[first as usize])
-    };
-    known_cells(tree, entries, cells, &stamped)
-}
-
-/// [`VertexCut::cell_bits`] read from a finished cut alone (no record of its rays): the cells that
-/// a cut node of V exactly 1 or 0 covers.
-pub fn cut_cell_bits(
-    tree: &LightTree,
-    entries: &[(u32, f32)],
-    cells: &[(u32, u32, u32)],
-) -> Vec<[u64; 2]> {
-    known_cells(tree, entries, cells, &|_| None)
-}
-
-/// The cells of `cells` whose visibility is known, in [`VertexCut::cell_bits`]' layout: from
-/// `stamped(first leaf)` where it answers, else from a cut node of V exactly 1 or 0 covering it.
-fn known_cells(
-    tree: &LightTree,
-    entries: &[(u32, f32)],
-    cells: &[(u32, u32, u32)],
-    stamped: &dyn Fn(u32) -> Option<bool>,
-) -> Vec<[u64; 2]> {
     let mut bits = vec![[0u64; 2]; cells.len().div_ceil(64)];
     let nodes = tree.nodes();
     let mut e = 0usize;
     for (i, &(_, first, end)) in cells.iter().enumerate() {
-        let known = if let Some(visible) = stamped(first) {
-            Some(visible)
+        let known = if scratch.stamp[first as usize] == scratch.generation {
+            Some(scratch.visible[first as usize])
         } else {
             while e < entries.len()
                 && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first

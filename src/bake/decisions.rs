@@ -502,7 +502,8 @@ pub fn decide_cell(
                                 v as f64
                                     * range
                                         .map(|l| {
-                                            luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0)
+                                            luminance[l]
+                                                * tree.leaf_moments()[l].dot(normal).max(0.0)
                                         })
                                         .sum::<f64>()
                             })
@@ -655,7 +656,10 @@ mod tests {
         let missed = decided(
             5.625,
             2,
-            &[(11.25, 0, 2.0 * CELL_TOLERANCE), (5.625, 2, 0.5 * CELL_TOLERANCE)],
+            &[
+                (11.25, 0, 2.0 * CELL_TOLERANCE),
+                (5.625, 2, 0.5 * CELL_TOLERANCE),
+            ],
         );
         let (levels, reason) = decide_boundary(None, false, true, Some(&missed));
         assert_eq!(levels, 2);

@@ -833,32 +833,7 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            // A new vertex lies between its edge's ends: where both know a visibility cell and
-            // agree on it, it takes theirs instead of casting its own ray (as a traced vertex takes
-            // its sampled neighbours', decision (f)); the rest it traces, shadow edges included.
-            let parent_bits: Vec<Vec<[u64; 2]>> = if r.interpolate {
-                parents
-                    .par_iter()
-                    .map_init(
-                        || (Vec::new(), Vec::new()),
-                        |(ea, eb), &[a, b]| {
-                            state.cuts.cut_into(a as usize, ea);
-                            state.cuts.cut_into(b as usize, eb);
-                            let bits = [
-                                cuts::cut_cell_bits(&self.tree, ea, &self.cells),
-                                cuts::cut_cell_bits(&self.tree, eb, &self.cells),
-                            ];
-                            sparse::agreed_cells(&[&bits[0], &bits[1]])
-                        },
-                    )
-                    .collect()
-            } else {
-                Vec::new()
-            };
-            let agreed = |i: usize| parent_bits.get(i).cloned().unwrap_or_default();
-            let agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)> =
-                (!parent_bits.is_empty()).then_some(&agreed);
-            self.bake_points(&points, agreed, false, &|_| {}, &mut |i, cut| {
+            self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
                 state.store(first_new + i, cut)
             });
             split_total += parents.len();
