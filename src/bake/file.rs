@@ -228,20 +228,19 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<(BakeHeader, Cuts, Refinement
         .chunks_exact(2)
         .map(|b| u16::from_le_bytes([b[0], b[1]]))
         .collect();
+    let node_count = 2 * 6 * header.decisions.resolution * header.decisions.resolution;
+    if nodes.iter().any(|&n| n as usize >= node_count) {
+        return Err(BakeFileError::Inconsistent {
+            path: p(),
+            message: "a cut names a node outside the light tree".into(),
+        });
+    }
     let cuts = Cuts::from_rows(&offsets, nodes, visibility).ok_or_else(|| {
         BakeFileError::Inconsistent {
             path: p(),
             message: "the cut offsets do not match the cut data".into(),
         }
     })?;
-    let node_count = 2 * 6 * header.decisions.resolution * header.decisions.resolution;
-    if (0..cuts.vertex_count()).any(|v| cuts.nodes_of(v).iter().any(|&n| n as usize >= node_count))
-    {
-        return Err(BakeFileError::Inconsistent {
-            path: p(),
-            message: "a cut names a node outside the light tree".into(),
-        });
-    }
     // The refinement: a count, then that many groups of `width` u32s.
     let mut at = cuts_end;
     let mut groups = |width: usize, what: &str| -> Result<Vec<u32>, BakeFileError> {

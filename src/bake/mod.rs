@@ -631,11 +631,19 @@ impl<'a> Baker<'a> {
                     .par_iter()
                     .map(|&v| {
                         let v = v as usize;
-                        // The sampled neighbours' cuts, read back once.
-                        let around: Vec<(u32, Vec<(u32, f32)>)> = self.vertex_neighbours[v]
-                            .iter()
-                            .filter(|&&u| self.sampled[u as usize])
-                            .map(|&u| (u, cuts.cut(u as usize).collect()))
+                        // The cuts of the sampled neighbours it may be interpolated from (none
+                        // where rule 2's geometry fails: then nothing is read back), once each.
+                        let anchors = sparse::anchors(
+                            v,
+                            &self.positions,
+                            &self.normals,
+                            &self.vertex_neighbours,
+                            &self.sampled,
+                            max_edge,
+                        )?;
+                        let around: Vec<(u32, Vec<(u32, f32)>)> = anchors
+                            .into_iter()
+                            .map(|u| (u, cuts.cut(u as usize).collect()))
                             .collect();
                         let cut_of = |u: usize| {
                             around

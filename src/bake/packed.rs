@@ -89,6 +89,8 @@ impl Cuts {
         self.nodes.extend(entries.iter().map(|e| e.0));
         self.visibility
             .extend(entries.iter().map(|e| quantise(e.1)));
+        // Fires only past 2³² nodes (~25 GB of cuts), which no bake holds in memory and the
+        // file's u32 offsets could not store.
         let end = u32::try_from(self.nodes.len()).expect("more than 2^32 cut nodes");
         self.spans[v] = [first as u32, end];
     }
