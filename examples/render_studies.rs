@@ -789,7 +789,8 @@ fn sharp_lobe_diagnose() {
 /// worst by the PRT's error against MC, `N` at random, and every `STRIDE`-th (default 3) seen at
 /// wo·n < `GZ` (default 0.3); the last class is also patched into the PRT frame (RGB, map L, cut V)
 /// to show what resolving the light and the BRDF inside leaves at those points would give against
-/// MC. `RES` bakes at that direction-set resolution; `ALL` prints every pixel. Bunny, rotation 90°,
+/// MC. `RES` bakes at that direction-set resolution; `ALL` prints every pixel; `PIX=k,k,…` takes
+/// only those pixels (index y·160 + x). Bunny, rotation 90°,
 /// K = 4, wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5
 /// %, Q with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette
 /// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --release --features studies --example
@@ -917,6 +918,9 @@ fn sharp_lobe_quadrature() {
         .step_by(stride)
         .collect();
     chosen.extend(grazing);
+    if let Ok(p) = arg("PIX") {
+        chosen = p.split(',').map(|x| x.parse().unwrap()).collect();
+    }
     let variants: Vec<glint::render::Image> = [
         PrtSettings {
             partition_deg: 1.0,

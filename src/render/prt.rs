@@ -17,9 +17,11 @@
 //!   coarse runs do not alias sharp lobes; `prefilter: false` evaluates p at ω_run alone. Isotropic
 //!   tables are read from their polar profiles ([`PhPyramid::lookup_profile_filtered`]) unless
 //!   `texel_lookups`. Shaded per pixel, the spread is the ellipse's peak-matched one
-//!   ([`half_vector_spread`]) and points seen at grazing angles use finer partitions
-//!   ([`GRAZING_TIERS`]); the vertex modes keep the wgpu preview's geometric-mean spread and one
-//!   partition.
+//!   ([`half_vector_spread`]), points seen at grazing angles use finer partitions
+//!   ([`GRAZING_TIERS`]), and below [`RESOLVE_BELOW`] the runs that carry the point's specular
+//!   are integrated inside their leaves over the map's own radiance ([`PrtSettings::resolve_leaves`],
+//!   [`crate::light::InsideLight`]); the vertex modes keep the wgpu preview's geometric-mean spread
+//!   and one partition.
 //!
 //! With `merge_runs` (the default) the runs of one render-partition node are summed first — Σ V·P,
 //! Σ V·moment and Σ V·power — and the BRDF is evaluated once per node at that visible light's
@@ -98,6 +100,14 @@ pub struct PrtSettings {
     /// isotropic pre-filter of a node's light stands in for that. Off: one partition for
     /// every point.
     pub grazing_tiers: bool,
+    /// With `per_pixel`: at points seen at wo·n < [`RESOLVE_BELOW`], the runs that carry more than
+    /// [`RESOLVE_SHARE`] of the point's specular estimate are integrated inside their leaves, over
+    /// the cells of [`LightSums::inside`] (the map's own radiance, 4×4 cells a leaf at the default
+    /// resolution) with the BRDF unfiltered at each cell, instead of once per run at its light's
+    /// direction and spread. There a sharp lobe covers about 2σ·(wo·h) of wi across the plane of
+    /// wi and wo, less than a leaf, so neither a leaf's mean radiance nor any pre-filter of it
+    /// stands in for the light the lobe sees. Off (or sums without inside light): the runs alone.
+    pub resolve_leaves: bool,
 }
 
 impl Default for PrtSettings {
@@ -119,6 +129,7 @@ impl Default for PrtSettings {
             per_pixel: true,
             merge_runs: true,
             grazing_tiers: true,
+            resolve_leaves: true,
         }
     }
 }
@@ -130,6 +141,14 @@ impl Default for PrtSettings {
 /// studio_1k, orbit 20,15,2.5, environment turned 90°, one sharp ring lobe along n, 160×120): see
 /// `tests/it/render.rs`, `sharp_lobe_at_grazing_views_against_monte_carlo`.
 pub const GRAZING_TIERS: [(f64, f64); 2] = [(1.125, 0.3), (2.25, 0.6)];
+
+/// [`PrtSettings::resolve_leaves`]: the view cosine wo·n below which a point's brightest runs are
+/// integrated inside their leaves.
+pub const RESOLVE_BELOW: f64 = 0.3;
+
+/// [`PrtSettings::resolve_leaves`]: a run is integrated inside its leaves where its specular
+/// estimate exceeds this share of the point's (luminance), so at most 1/share runs a point.
+pub const RESOLVE_SHARE: f64 = 1e-3;
 
 /// A render-partition node's light under one rotation: per channel its radiant moment, and the
 /// luminance of its power. Read once per frame (a few hundred nodes) instead of four prefix-sum
@@ -617,7 +636,7 @@ impl<'a> Prt<'a> {
                 light,
                 node_light,
                 spreads,
-                |_, _, vis_cos_power, lum_moment, lum_power| {
+                |_, _, _, vis_cos_power, lum_moment, lum_power| {
                     f(vis_cos_power, lum_moment, spread(lum_moment, lum_power))
                 },
             );
@@ -632,7 +651,7 @@ impl<'a> Prt<'a> {
             light,
             node_light,
             spreads,
-            |si, vis, vis_cos_power, lum_moment, lum_power| match pending.as_mut() {
+            |si, _, vis, vis_cos_power, lum_moment, lum_power| match pending.as_mut() {
                 Some(p) if p.0 == si => {
                     for (sum, x) in p.1.iter_mut().zip(vis_cos_power) {
                         *sum += x;
@@ -654,8 +673,8 @@ impl<'a> Prt<'a> {
         }
     }
 
-    /// [`Self::for_each_lit_run`] per run: `f(partition node, V, V·cos power, luminance moment,
-    /// luminance power)` (the power only when `spreads`, else 0). `node_light`: the partition
+    /// [`Self::for_each_lit_run`] per run: `f(partition node, the run's leaves [a, z), V, V·cos
+    /// power, luminance moment, luminance power)` (the power only when `spreads`, else 0). `node_light`: the partition
     /// nodes' light ([`Self::node_light`]) for runs that are whole nodes, or `None` to read every
     /// run's from the prefix sums.
     #[inline]
@@ -668,7 +687,7 @@ impl<'a> Prt<'a> {
         light: &LightSums,
         node_light: Option<&[NodeLight]>,
         spreads: bool,
-        mut f: impl FnMut(usize, f64, [f64; 3], DVec3, f64),
+        mut f: impl FnMut(usize, (usize, usize), f64, [f64; 3], DVec3, f64),
     ) {
         let lists: [&[Span]; 3] = std::array::from_fn(|i| {
             corners
@@ -724,7 +743,14 @@ impl<'a> Prt<'a> {
                     (true, Some(nl)) => nl.lum_power,
                     (true, None) => luminance(light.power(a, z)),
                 };
-                f(si, vis, cos_power.map(|x| vis * x), lum_moment, lum_power);
+                f(
+                    si,
+                    (a, z),
+                    vis,
+                    cos_power.map(|x| vis * x),
+                    lum_moment,
+                    lum_power,
+                );
             },
         );
     }
@@ -882,6 +908,25 @@ impl<'a> Prt<'a> {
             Some(t) => (&self.tiers[t].0, tier_light.get(t).map(|l| l.as_slice())),
             None => (&self.partition, node_light),
         };
+        if has_specular
+            && self.settings.per_pixel
+            && self.settings.resolve_leaves
+            && wo.z < RESOLVE_BELOW
+            && let Some(inside) = light.inside()
+        {
+            return self.shade_resolved(
+                partition,
+                &corners[..count],
+                n,
+                &frame,
+                wo,
+                wo_world,
+                light,
+                node_light,
+                inside,
+                shading,
+            );
+        }
         let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
         self.for_each_lit_run(
             partition,
@@ -905,6 +950,92 @@ impl<'a> Prt<'a> {
                 }
             },
         );
+        std::array::from_fn(|c| shading.rho_d[c] / std::f64::consts::PI * e[c] + spec[c])
+    }
+
+    /// Eq. 22 at a point seen at a grazing angle ([`PrtSettings::resolve_leaves`]): every run's
+    /// specular estimate as [`Self::shade_point_with`] makes it, then the runs whose estimate
+    /// exceeds [`RESOLVE_SHARE`] of the point's — or, astride the horizon with their light's
+    /// direction below it, whose estimate at that direction lifted above it does — summed again
+    /// over the cells inside their leaves: V · Σ_cells Ω·L · max(ω·n, 0) · s(ω, wo) · p(h), p
+    /// unfiltered. The diffuse term is the runs' as everywhere.
+    #[allow(clippy::too_many_arguments)] // the point's geometry and light: plain data
+    fn shade_resolved(
+        &self,
+        partition: &Partition,
+        corners: &[(u32, f64)],
+        n: DVec3,
+        frame: &Frame,
+        wo: DVec3,
+        wo_world: DVec3,
+        light: &LightSums,
+        node_light: Option<&[NodeLight]>,
+        inside: &crate::light::InsideLight,
+        shading: &Shading,
+    ) -> [f64; 3] {
+        let specular = shading.specular;
+        let estimate = |vis_cos_power: [f64; 3], dir: DVec3, v_omega: f64| {
+            self.run_specular(dir, v_omega, frame, wo, wo_world, shading.f0, specular)
+                .map_or([0.0; 3], |(s, p)| {
+                    std::array::from_fn(|c| vis_cos_power[c] * s * p[c])
+                })
+        };
+        // (leaves, V, the estimate, the estimate that selects it).
+        let mut runs: Vec<((usize, usize), f64, [f64; 3], f64)> = Vec::new();
+        let mut e = [0.0f64; 3];
+        self.for_each_lit_piece(
+            partition,
+            corners,
+            n,
+            light,
+            node_light,
+            self.settings.prefilter,
+            |_, leaves, vis, vis_cos_power, lum_moment, lum_power| {
+                for c in 0..3 {
+                    e[c] += vis_cos_power[c];
+                }
+                let v_omega = spread(lum_moment, lum_power);
+                let est = estimate(vis_cos_power, lum_moment, v_omega);
+                // Light astride the horizon whose direction is below it: judged at that direction
+                // lifted just above it.
+                let select = if est == [0.0; 3] && lum_moment.dot(n) <= 0.0 {
+                    let lifted =
+                        lum_moment.normalize_or_zero().reject_from_normalized(n) + n * 1e-3;
+                    luminance(estimate(vis_cos_power, lifted, v_omega))
+                } else {
+                    luminance(est)
+                };
+                runs.push((leaves, vis, est, select));
+            },
+        );
+        let total: f64 = runs.iter().map(|r| luminance(r.2)).sum();
+        let threshold = RESOLVE_SHARE * total;
+        let leaf_texels = self.tree.leaf_texels();
+        let mut spec = [0.0f64; 3];
+        for ((a, z), vis, est, select) in runs {
+            if !(select > threshold) {
+                for c in 0..3 {
+                    spec[c] += est[c];
+                }
+                continue;
+            }
+            for &t in &leaf_texels[a..z] {
+                for (dir, power) in inside.texel(t as usize) {
+                    let dir = dir.as_dvec3();
+                    let cos = dir.dot(n);
+                    if cos <= 0.0 || power == [0.0; 3] {
+                        continue;
+                    }
+                    if let Some((s, p)) =
+                        self.run_specular(dir, 0.0, frame, wo, wo_world, shading.f0, specular)
+                    {
+                        for c in 0..3 {
+                            spec[c] += vis * power[c] as f64 * cos * s * p[c];
+                        }
+                    }
+                }
+            }
+        }
         std::array::from_fn(|c| shading.rho_d[c] / std::f64::consts::PI * e[c] + spec[c])
     }
 

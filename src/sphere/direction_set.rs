@@ -157,12 +157,21 @@ impl DirectionSet {
 
     /// The texel containing direction `d` (any non-zero vector).
     pub fn texel_of(&self, d: DVec3) -> usize {
+        self.texel_position(d).0
+    }
+
+    /// The texel containing direction `d` (any non-zero vector) and where in it: (texel, a, b)
+    /// with a, b ∈ [0, 1] as [`Self::texel_point`] takes them.
+    pub fn texel_position(&self, d: DVec3) -> (usize, f64, f64) {
         let n = self.resolution;
         let (face, s, t) = direction_to_face(d);
-        let to_index = |x: f64| {
-            (((x + 1.0) * 0.5 * n as f64).floor() as isize).clamp(0, n as isize - 1) as usize
+        let split = |x: f64| {
+            let x = (x + 1.0) * 0.5 * n as f64;
+            let i = (x.floor() as isize).clamp(0, n as isize - 1) as usize;
+            (i, (x - i as f64).clamp(0.0, 1.0))
         };
-        face * n * n + to_index(t) * n + to_index(s)
+        let ((col, a), (row, b)) = (split(s), split(t));
+        (face * n * n + row * n + col, a, b)
     }
 }
 

@@ -433,6 +433,35 @@ pub fn prt_and_mc(
         },
     );
     let prt_secs = t0.elapsed().as_secs_f64();
+    let t0 = std::time::Instant::now();
+    let mc = mc_render(c, imported, m, camera, rotation_deg, (w, h), spp, 7);
+    Pair {
+        prt: img,
+        mc,
+        prt_secs,
+        mc_secs: t0.elapsed().as_secs_f64(),
+    }
+}
+
+/// The Monte Carlo reference of [`prt_and_mc`] with its own seed (a second seed estimates the
+/// reference's noise).
+#[allow(clippy::too_many_arguments)]
+pub fn mc_render(
+    c: &Case,
+    imported: &glint::scene::Mesh,
+    m: &glint::fit::material::Material,
+    camera: &glint::scene::Camera,
+    rotation_deg: f64,
+    (w, h): (u32, u32),
+    spp: u32,
+    seed: u64,
+) -> glint::render::Image {
+    let lobes = m.lobes().unwrap();
+    let coefficients = [
+        m.coefficients[0].as_slice(),
+        m.coefficients[1].as_slice(),
+        m.coefficients[2].as_slice(),
+    ];
     let (_, tangents, _) = glint::bake::decisions::decide_frames(imported);
     let tracer = glint::bake::Tracer::new(imported);
     let material = ExactMaterial {
@@ -441,25 +470,18 @@ pub fn prt_and_mc(
         rho_d: m.rho_d,
         f0: m.f0,
     };
-    let t0 = std::time::Instant::now();
-    let mc = render_reference(
+    render_reference(
         imported,
         tangents.as_deref(),
         &tracer,
         c.baker_offset,
         &c.env,
-        rotation,
+        rotation_deg.to_radians(),
         material,
         camera,
         w,
         h,
         spp,
-        7,
-    );
-    Pair {
-        prt: img,
-        mc,
-        prt_secs,
-        mc_secs: t0.elapsed().as_secs_f64(),
-    }
+        seed,
+    )
 }
