@@ -87,11 +87,20 @@ fn main() {
         let scene = bake.scene(&scene).unwrap();
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
-        for (label, max_edge_px, partition_deg, per_pixel) in [
-            ("vertices", 0.0, default_deg, false),
-            ("vertices", 0.0, 16.0, false),
-            ("1-px triangles", 1.0, default_deg, false),
-            ("per pixel (default)", 1.0, default_deg, true),
+        // The last row is the default without its grazing points' runs resolved inside their
+        // leaves, side by side.
+        for (label, max_edge_px, partition_deg, per_pixel, resolve_leaves) in [
+            ("vertices", 0.0, default_deg, false, true),
+            ("vertices", 0.0, 16.0, false, true),
+            ("1-px triangles", 1.0, default_deg, false, true),
+            ("per pixel (default)", 1.0, default_deg, true, true),
+            (
+                "per pixel, grazing runs not resolved",
+                1.0,
+                default_deg,
+                true,
+                false,
+            ),
         ] {
             let prt = Prt::new(
                 &scene.mesh,
@@ -102,6 +111,7 @@ fn main() {
                     max_edge_px,
                     partition_deg,
                     per_pixel,
+                    resolve_leaves,
                     ..PrtSettings::default()
                 },
             );

@@ -790,7 +790,7 @@ fn sharp_lobe_diagnose() {
 /// wo·n < `GZ` (default 0.3); the last class is also patched into the PRT frame (RGB, map L, cut V)
 /// to show what resolving the light and the BRDF inside leaves at those points would give against
 /// MC. `RES` bakes at that direction-set resolution; `ALL` prints every pixel; `PIX=k,k,…` takes
-/// only those pixels (index y·160 + x). Bunny, rotation 90°,
+/// only those pixels (index y·160 + x); `MAP` is the environment (default samples/studio_1k.exr). Bunny, rotation 90°,
 /// K = 4, wo·n < 0.3 (251 pixels, 44 s): against Q_mc the PRT is 8.9 %, Q_leafL 6.3 %, Q_cutV 5.5
 /// %, Q with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette
 /// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --release --features studies --example
@@ -804,7 +804,7 @@ fn sharp_lobe_quadrature() {
     let c = {
         let (mesh, env) = (
             samples.join(format!("{mesh}.glb")),
-            samples.join("studio_1k.exr"),
+            arg("MAP").map_or_else(|_| samples.join("studio_1k.exr"), Into::into),
         );
         let scene = glint::scene::import(&mesh).unwrap();
         let env = glint::env::load(&env).unwrap();

@@ -60,6 +60,10 @@ use glam::{DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+/// A run at a grazing point ([`Prt::shade_resolved`]): its leaves [a, z), V, its specular estimate
+/// and the luminance that selects it for integration inside its leaves.
+type EstimatedRun = ((usize, usize), f64, [f64; 3], f64);
+
 /// A shading point's distinct corners with their weights, how many, position, normal and frame.
 type PointGeometry = ([(u32, f64); 3], usize, DVec3, DVec3, Frame);
 
@@ -102,11 +106,13 @@ pub struct PrtSettings {
     pub grazing_tiers: bool,
     /// With `per_pixel`: at points seen at wo·n < [`RESOLVE_BELOW`], the runs that carry more than
     /// [`RESOLVE_SHARE`] of the point's specular estimate are integrated inside their leaves, over
-    /// the cells of [`LightSums::inside`] (the map's own radiance, 4×4 cells a leaf at the default
-    /// resolution) with the BRDF unfiltered at each cell, instead of once per run at its light's
-    /// direction and spread. There a sharp lobe covers about 2σ·(wo·h) of wi across the plane of
-    /// wi and wo, less than a leaf, so neither a leaf's mean radiance nor any pre-filter of it
-    /// stands in for the light the lobe sees. Off (or sums without inside light): the runs alone.
+    /// the cells of [`LightSums::inside`] (the map's own radiance, up to 4×4 cells a leaf) with
+    /// the BRDF unfiltered at each cell, instead of once per run at its light's direction and
+    /// spread. There a sharp lobe covers about 2σ·(wo·h) of wi across the plane of wi and wo,
+    /// less than a leaf, so neither a leaf's mean radiance nor any pre-filter of it stands in for
+    /// the light the lobe sees. Off (or sums without inside light): the runs alone. The bunny's
+    /// sharp lobe at an orbit view, map turned 90°: 5.92 → 2.33 % off Monte Carlo (2.15 % of it
+    /// the reference's noise), frame +6–39 % (`cargo bench --bench render`).
     pub resolve_leaves: bool,
 }
 
@@ -674,9 +680,9 @@ impl<'a> Prt<'a> {
     }
 
     /// [`Self::for_each_lit_run`] per run: `f(partition node, the run's leaves [a, z), V, V·cos
-    /// power, luminance moment, luminance power)` (the power only when `spreads`, else 0). `node_light`: the partition
-    /// nodes' light ([`Self::node_light`]) for runs that are whole nodes, or `None` to read every
-    /// run's from the prefix sums.
+    /// power, luminance moment, luminance power)` (the power only when `spreads`, else 0).
+    /// `node_light`: the partition nodes' light ([`Self::node_light`]) for runs that are whole
+    /// nodes, or `None` to read every run's from the prefix sums.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     fn for_each_lit_piece(
@@ -980,8 +986,7 @@ impl<'a> Prt<'a> {
                     std::array::from_fn(|c| vis_cos_power[c] * s * p[c])
                 })
         };
-        // (leaves, V, the estimate, the estimate that selects it).
-        let mut runs: Vec<((usize, usize), f64, [f64; 3], f64)> = Vec::new();
+        let mut runs: Vec<EstimatedRun> = Vec::new();
         let mut e = [0.0f64; 3];
         self.for_each_lit_piece(
             partition,
