@@ -44,6 +44,7 @@ fn main() {
         ("refine_study", refine_study),
         ("sharp_lobe_diagnose", sharp_lobe_diagnose),
         ("sharp_lobe_quadrature", sharp_lobe_quadrature),
+        ("bake_error", bake_error),
     ];
     let name = std::env::args().nth(1).unwrap_or_default();
     match studies.iter().find(|(n, _)| *n == name) {
@@ -1139,4 +1140,101 @@ fn sharp_lobe_quadrature() {
         100.0 * rmse_where(&pair.prt, &pair.mc, None),
         100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil))
     );
+}
+
+/// Study: `render_studies bake_error MESH=bunny MAP=studio_1k CONFIGS=5.625:2:0,11.25:3:0.002`
+/// bakes the mesh as imported (no refinement (e), every vertex traced) with each configuration
+/// (cell degrees : boundary levels : boundary budget), and prints rays, seconds and the relative RMS
+/// error of the irradiance of the map's luminance over the vertices against a ray per direction,
+/// at the rotations ROTS (degrees about +Y).
+fn bake_error() {
+    let mesh = arg("MESH").unwrap_or_else(|_| "bunny".into());
+    let map = arg("MAP").unwrap_or_else(|_| "studio_1k".into());
+    let configs: Vec<(f64, u32, f64)> = arg("CONFIGS")
+        .unwrap_or_else(|_| "5.625:2:0".into())
+        .split(',')
+        .map(|c| {
+            let f: Vec<&str> = c.split(':').collect();
+            (
+                f[0].parse().unwrap(),
+                f[1].parse().unwrap(),
+                f[2].parse().unwrap(),
+            )
+        })
+        .collect();
+    let rots: Vec<f64> = arg("ROTS")
+        .unwrap_or_else(|_| "0,90,180,270".into())
+        .split(',')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+    let base = BakeSettings {
+        refine: glint::bake::RefineSettings {
+            rounds: 0,
+            interpolate: false,
+            ..Default::default()
+        },
+        ..BakeSettings::default()
+    };
+    let bake_with = |deg: f64, levels: u32, budget: f64| {
+        let mut settings = base;
+        settings.cell_deg = Some(deg);
+        settings.boundary_levels = Some(levels);
+        settings.cut.boundary_budget = budget;
+        let t0 = std::time::Instant::now();
+        let baker = Baker::new(&scene, &env, settings).unwrap();
+        let bake = baker.bake_all(None, &|_| {});
+        let secs = t0.elapsed().as_secs_f64();
+        let irradiance: Vec<Vec<f64>> = rots
+            .iter()
+            .map(|&rot| {
+                let radiance = glint::light::texel_radiance(&env, &baker.set, rot.to_radians());
+                let luminance = glint::bake::decisions::leaf_grey(&baker.tree, &radiance);
+                (0..bake.cuts.vertex_count())
+                    .map(|v| {
+                        let Some((_, n)) = baker.ray_origin(v) else {
+                            return 0.0;
+                        };
+                        glint::bake::decisions::cut_irradiance(
+                            &baker.tree,
+                            bake.cuts.cut(v),
+                            &luminance,
+                            n,
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        (bake.stats.rays_traced, secs, irradiance)
+    };
+    // EXACT=0 skips the reference (errors print as NaN).
+    let (exact_rays, exact_secs, exact) = if arg("EXACT").as_deref() == Ok("0") {
+        (0, 0.0, vec![Vec::new(); rots.len()])
+    } else {
+        bake_with(0.0, 0, 0.0)
+    };
+    println!("{mesh} under {map}: a ray per direction {exact_rays} rays, {exact_secs:.2} s");
+    println!("| cells | levels | budget | rays | bake (s) | error per rotation ({rots:?}) |");
+    println!("|---|---|---|---|---|---|");
+    for &(cell, levels, budget) in &configs {
+        let (rays, secs, e) = bake_with(cell, levels, budget);
+        let errors: Vec<String> = e
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| {
+                if b.is_empty() {
+                    return "NaN".to_string();
+                }
+                let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+                let den: f64 = b.iter().map(|y| y * y).sum();
+                format!("{:.3} %", 100.0 * (num / den).sqrt())
+            })
+            .collect();
+        println!(
+            "| {cell}° | {levels} | {budget} | {:.2} M | {secs:.2} | {} |",
+            rays as f64 / 1e6,
+            errors.join(", ")
+        );
+    }
 }

@@ -16,7 +16,8 @@
 //! - (d) [`decide_cell`]: how large may a visibility cell (one ray, V ∈ {0, 1} over the cell) be
 //!   for this scene under this environment, and are cells at shadow edges traced again finer?
 //!   Measured at probe vertices on the cuts the bake would make there: the irradiance with each
-//!   candidate (11.25° cells; 5.625° cells refined at shadow edges) against the irradiance with a
+//!   candidate (11.25° cells; 11.25° cells refined at shadow edges where a light's visibility
+//!   changes; 5.625° cells refined likewise) against the irradiance with a
 //!   ray per direction; the cheaper within 2 % wins (else the closer). Small bright lights (a
 //!   studio's softboxes, a window) whose visibility a coarse cell gets wrong push it finer; a broad
 //!   sky does not.
@@ -373,16 +374,21 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
 ///
 /// 22.5° is not a candidate: on studio_1k it put the bunny's frame 7.5 % off the Monte Carlo truth
 /// (`glint study`), and the specular part, which the irradiance probe does not see, suffers first.
-/// Where 11.25° cells miss shadows, 5.625° cells are refined at shadow edges to 2.8125° and
-/// 1.40625° ([`crate::bake::CutSettings::boundary_levels`]): against a ray per direction the
-/// bunny's whole bake under studio_1k is then 0.02 % off. Refining 11.25° cells instead halves the
-/// rays (dragon.glb under courtyard_1k: 42 M against 93 M) but is not a candidate, because it
-/// costs accuracy: the bunny's bake 0.61 % off, dragon_100k's PRT frame under studio_1k 2.75 %
-/// off the Monte Carlo reference against 2.46 % (`tests/it/bake_visibility.rs`,
-/// docs/benchmarks.md); a user who wants that trade sets `--cell-deg 11.25 --boundary-levels 2`.
-pub const CELL_CANDIDATES: [(f64, u32); 2] = [(11.25, 0), (5.625, 2)];
+/// Where 11.25° cells miss shadows, they are refined at shadow edges three times, to 5.625°,
+/// 2.8125° and 1.40625° ([`crate::bake::CutSettings::boundary_levels`]), under the light budget
+/// ([`crate::bake::CutSettings::boundary_budget`]): a shadow edge is refined where a light's
+/// visibility changes, not where the map is dark under every rotation. On dragon_100k under
+/// studio_1k (every vertex traced, `render_studies bake_error`) this takes 34 M rays against
+/// 134 M for 5.625° cells refined twice without the budget, at 0.27–1.29 % of a ray per
+/// direction's irradiance (four rotations) against 0.10–0.55 %. 5.625° cells refined twice (with
+/// the budget) stay the last candidate, for a scene where 11.25° cells are too coarse even to
+/// find the shadow edges.
+pub const CELL_CANDIDATES: [(f64, u32); 3] = [(11.25, 0), (11.25, 3), (5.625, 2)];
 /// Largest relative RMS irradiance error at the probe vertices that a cell choice may cause.
 pub const CELL_TOLERANCE: f64 = 0.02;
+/// Where no candidate of (d) is within [`CELL_TOLERANCE`], the cheapest within this factor of the
+/// closest one's error is taken: the cost should follow the error it buys.
+pub const CELL_NEAR: f64 = 1.2;
 /// Probe vertices for (d), spread evenly over the vertex list.
 pub const CELL_PROBES: usize = 128;
 
@@ -420,6 +426,19 @@ fn cell_words(deg: f64, levels: u32) -> String {
     }
 }
 
+/// The sizes boundary refinement traces cells of `deg` degrees at, `levels` times halved: "5.625°,
+/// 2.8125° and 1.40625°".
+fn refined_sizes(deg: f64, levels: u32) -> String {
+    let sizes: Vec<String> = (1..=levels)
+        .map(|l| format!("{}°", deg / f64::from(1u32 << l)))
+        .collect();
+    match sizes.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        Some((last, _)) => last.clone(),
+        None => String::new(),
+    }
+}
+
 /// What decision (d) chose: the visibility cell size and its boundary refinement.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellDecision {
@@ -433,6 +452,34 @@ pub struct CellDecision {
     pub errors: Vec<(f64, u32, f64)>,
 }
 
+/// Per leaf (tree order), the mean of the three channels of its texel's radiance.
+pub fn leaf_grey(tree: &LightTree, texel_radiance: &[[f64; 3]]) -> Vec<f64> {
+    tree.leaf_texels()
+        .iter()
+        .map(|&t| texel_radiance[t as usize].iter().sum::<f64>() / 3.0)
+        .collect()
+}
+
+/// Σ over a cut's nodes (k, V_k) of V_k Σ_{ℓ∈k} L_ℓ max(Ω_ℓ d_ℓ·n, 0): the irradiance of the
+/// per-leaf radiance `radiance` (tree order) that the cut sees about unit normal `n`.
+pub fn cut_irradiance(
+    tree: &LightTree,
+    cut: impl Iterator<Item = (u32, f32)>,
+    radiance: &[f64],
+    n: DVec3,
+) -> f64 {
+    let nodes = tree.nodes();
+    cut.map(|(k, v)| {
+        let node = nodes[k as usize];
+        let range = node.first as usize..(node.first + node.count) as usize;
+        v as f64
+            * range
+                .map(|l| radiance[l] * tree.leaf_moments()[l].dot(n).max(0.0))
+                .sum::<f64>()
+    })
+    .sum()
+}
+
 /// (d): the visibility cell size and its boundary levels.
 ///
 /// At [`CELL_PROBES`] vertices (ray origins and normals in `origins`) the irradiance of the
@@ -441,8 +488,8 @@ pub struct CellDecision {
 /// each candidate of [`CELL_CANDIDATES`], where one ray along a cell's mean direction decides V for
 /// the whole cell and, with boundary levels, cells at a shadow edge are traced again finer. The
 /// first (cheapest) candidate whose relative RMS error over the probes is within
-/// [`CELL_TOLERANCE`] is chosen; if none is, the one measured closest, and the reason says how far
-/// off it stays.
+/// [`CELL_TOLERANCE`] is chosen; if none is, the cheapest within [`CELL_NEAR`] of the one
+/// measured closest, and the reason says how far off it stays.
 pub fn decide_cell(
     env: &LightSource,
     set: &DirectionSet,
@@ -450,13 +497,10 @@ pub fn decide_cell(
     origins: &[(DVec3, DVec3)],
     tracer: &Tracer,
     cut: &CutSettings,
+    ring_prefix: &[DVec3],
+    totals: &super::refine::HemisphereTotals,
 ) -> CellDecision {
-    let radiance = texel_radiance_from(env, set, 0.0);
-    let luminance: Vec<f64> = tree
-        .leaf_texels()
-        .iter()
-        .map(|&t| radiance[t as usize].iter().sum::<f64>() / 3.0)
-        .collect();
+    let luminance = leaf_grey(tree, &texel_radiance_from(env, set, 0.0));
     let resolution = set.resolution();
     // The reference (a ray per direction), then the candidates.
     let configs: Vec<(CutSettings, CellNeighbours)> = std::iter::once((0.0, 0))
@@ -476,7 +520,6 @@ pub fn decide_cell(
     let probes: Vec<(DVec3, DVec3)> = (0..count)
         .map(|i| origins[(2 * i + 1) * origins.len() / (2 * count)])
         .collect();
-    let nodes = tree.nodes();
     // Per probe: the irradiance of the reference and of each candidate.
     let sums: Vec<Vec<f64>> = probes
         .par_iter()
@@ -491,23 +534,23 @@ pub fn decide_cell(
                             agreed: &[],
                             record: false,
                         };
+                        let gate = super::cuts::LightGate {
+                            prefix: ring_prefix,
+                            total: totals.at(normal),
+                        };
                         let made = vertex_cut(
-                            origin, normal, 0.0, tree, tracer, settings, neighbours, scratch, prior,
+                            origin,
+                            normal,
+                            0.0,
+                            tree,
+                            tracer,
+                            settings,
+                            neighbours,
+                            scratch,
+                            prior,
+                            Some(gate),
                         );
-                        made.entries
-                            .iter()
-                            .map(|&(k, v)| {
-                                let node = nodes[k as usize];
-                                let range = node.first as usize..(node.first + node.count) as usize;
-                                v as f64
-                                    * range
-                                        .map(|l| {
-                                            luminance[l]
-                                                * tree.leaf_moments()[l].dot(normal).max(0.0)
-                                        })
-                                        .sum::<f64>()
-                            })
-                            .sum()
+                        cut_irradiance(tree, made.entries.iter().copied(), &luminance, normal)
                     })
                     .collect()
             },
@@ -532,25 +575,23 @@ pub fn decide_cell(
         .collect::<Vec<_>>()
         .join("; ");
     let chosen = errors.iter().position(|e| e.2 <= CELL_TOLERANCE);
-    // None is within tolerance: the candidate measured closest (the cheaper on a tie). Finer cells
-    // are closer on average, but not always at the probes (teapot under interior_1k: 11.25° 3.3 %,
-    // 5.625° 3.5 %), and then the extra rays buy nothing.
+    // None is within tolerance: the cheapest candidate within [`CELL_NEAR`] of the closest. Finer
+    // cells are closer on average, but not always at the probes (teapot under interior_1k: 11.25°
+    // 3.3 %, 5.625° 3.5 %), and where they are by a hair (the bunny under interior_1k: 2.46 %
+    // against 2.45 %, for 2× the rays) the extra rays buy nothing.
     let c = chosen.unwrap_or_else(|| {
-        (0..errors.len()).fold(0, |best, c| {
-            if errors[c].2 < errors[best].2 {
-                c
-            } else {
-                best
-            }
-        })
+        let best = errors.iter().map(|e| e.2).fold(f64::INFINITY, f64::min);
+        errors
+            .iter()
+            .position(|e| e.2 <= CELL_NEAR * best)
+            .unwrap_or(0)
     });
     let (deg, levels, _) = errors[c];
     let cells = cell_size_words(tree, cell_leaves(resolution, deg));
     let edges = if levels > 0 {
         format!(
-            ", cells at shadow edges traced again at {}° and {}°",
-            deg / 2.0,
-            deg / 4.0
+            ", cells at shadow edges traced again at {}",
+            refined_sizes(deg, levels)
         )
     } else {
         String::new()
@@ -561,7 +602,8 @@ pub fn decide_cell(
             CELL_TOLERANCE * 100.0
         ),
         None => format!(
-            "{deg}° cells ({cells}){edges}, the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
+            "{deg}° cells ({cells}){edges}, the cheapest within {:.0} % of the candidate closest to a ray per direction: small bright lights make cells miss their shadows, and none is within {:.0} % at {count} probe vertices ({listed})",
+            (CELL_NEAR - 1.0) * 100.0,
             CELL_TOLERANCE * 100.0
         ),
     };
@@ -612,9 +654,8 @@ pub fn decide_boundary(
     (
         d.levels,
         format!(
-            "cells at shadow edges traced again at {}° and {}°: {deg0}° cells missed {:.1} % of the irradiance at the probes, so small bright lights cast sharp shadows, which a ray per cell moves to the cells' borders",
-            d.deg / 2.0,
-            d.deg / 4.0,
+            "cells at shadow edges traced again at {}, where they gate light: {deg0}° cells missed {:.1} % of the irradiance at the probes, so small bright lights cast sharp shadows, which a ray per cell moves to the cells' borders",
+            refined_sizes(d.deg, d.levels),
             error0 * 100.0
         ),
     )
@@ -654,19 +695,22 @@ mod tests {
     fn boundary_refinement_follows_the_cell_decision() {
         // The coarsest cells missed shadows: sharp lights, the finer cells refined as decided.
         let missed = decided(
-            5.625,
-            2,
+            11.25,
+            3,
             &[
                 (11.25, 0, 2.0 * CELL_TOLERANCE),
-                (5.625, 2, 0.5 * CELL_TOLERANCE),
+                (11.25, 3, 0.5 * CELL_TOLERANCE),
+                (5.625, 2, 0.4 * CELL_TOLERANCE),
             ],
         );
         let (levels, reason) = decide_boundary(None, false, true, Some(&missed));
-        assert_eq!(levels, 2);
+        assert_eq!(levels, 3);
         assert!(
-            reason.contains("2.8125°") && reason.contains("1.40625°") && reason.contains("4.0 %"),
+            reason.contains("5.625°, 2.8125° and 1.40625°") && reason.contains("4.0 %"),
             "{reason}"
         );
+        assert_eq!(refined_sizes(5.625, 2), "2.8125° and 1.40625°");
+        assert_eq!(refined_sizes(8.0, 1), "4°");
         // Within tolerance at the coarsest: soft light, no refinement.
         let soft = decided(11.25, 0, &[(11.25, 0, 0.5 * CELL_TOLERANCE)]);
         assert_eq!(decide_boundary(None, false, true, Some(&soft)).0, 0);

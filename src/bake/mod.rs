@@ -52,9 +52,8 @@ pub struct BakeSettings {
     /// resolution so that the number of rays does not grow with it: cells are the tree's largest
     /// nodes of at most (n · cell_deg / 90°)² leaves (at most 64 at n = 64 for 11.25°, so nodes of
     /// 48: the tree's node sizes are 3·2^k; 0 gives a ray per direction). `None` decides it from
-    /// the scene and the environment (decision (d), [`decisions::decide_cell`]): 11.25° unless
-    /// small bright lights need 5.625°. Measured on dragon_100k: 11.25° bakes in 5.8 s, 5.625° in
-    /// 16.4 s.
+    /// the scene and the environment (decision (d), [`decisions::decide_cell`]): 11.25°, refined at
+    /// the shadow edges of small bright lights where they need it.
     pub cell_deg: Option<f64>,
     /// Adaptive refinement of the mesh where visibility changes between vertices (decision (e),
     /// [`refine`]); used by [`Baker::bake_refined`].
@@ -199,7 +198,7 @@ pub struct Baker<'a> {
     /// empty when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
     sampled: Vec<bool>,
-    hemisphere_totals: sparse::HemisphereTotals,
+    hemisphere_totals: refine::HemisphereTotals,
 }
 
 impl<'a> Baker<'a> {
@@ -264,50 +263,13 @@ impl<'a> Baker<'a> {
         // sampling set (f) need nothing of it: side by side.
         let interpolate = trace_visibility && settings.refine.interpolate;
         let (
-            (cell_deg, cell_reason, cell_decision),
-            ((frame_source, tangents, frame_reason), ring_prefix, (vertex_neighbours, sampled)),
+            ((cell_deg, cell_reason, cell_decision), ring_prefix, hemisphere_totals),
+            ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled)),
         ) = rayon::join(
-            || match settings.cell_deg {
-                Some(deg) => (
-                    deg,
-                    format!(
-                        "set explicitly to {deg}° ({})",
-                        decisions::cell_size_words(&tree, decisions::cell_leaves(resolution, deg))
-                    ),
-                    None,
-                ),
-                None if !trace_visibility => {
-                    let deg = decisions::CELL_CANDIDATES[0].0;
-                    (
-                        deg,
-                        format!(
-                            "{deg}°: no visibility is traced, so the cell size does not matter"
-                        ),
-                        None,
-                    )
-                }
-                None => {
-                    let origins: Vec<(DVec3, DVec3)> = positions
-                        .iter()
-                        .zip(&normals)
-                        .map(|(p, n)| (*p + *n * offset, *n))
-                        .collect();
-                    let d = decisions::decide_cell(
-                        &source,
-                        &set,
-                        &tree,
-                        &origins,
-                        &tracer,
-                        &settings.cut,
-                    );
-                    (d.deg, d.reason.clone(), Some(d))
-                }
-            },
             || {
-                let frames = decisions::decide_frames(mesh);
-                let ring_prefix = if trace_visibility
-                    && (settings.refine.rounds > 0 || settings.refine.interpolate)
-                {
+                // The rotation-worst light per leaf: what refinement (e), vertex sampling (f) and
+                // the boundary refinement's budget weigh visibility by.
+                let ring_prefix = if trace_visibility {
                     refine::ring_weight_prefix(
                         &tree,
                         crate::light::LightSums::from_source(&source, &set, &tree, 0.0)
@@ -316,6 +278,52 @@ impl<'a> Baker<'a> {
                 } else {
                     Vec::new()
                 };
+                let totals = refine::HemisphereTotals::new(&tree, &ring_prefix);
+                let cell = match settings.cell_deg {
+                    Some(deg) => (
+                        deg,
+                        format!(
+                            "set explicitly to {deg}° ({})",
+                            decisions::cell_size_words(
+                                &tree,
+                                decisions::cell_leaves(resolution, deg)
+                            )
+                        ),
+                        None,
+                    ),
+                    None if !trace_visibility => {
+                        let deg = decisions::CELL_CANDIDATES[0].0;
+                        (
+                            deg,
+                            format!(
+                                "{deg}°: no visibility is traced, so the cell size does not matter"
+                            ),
+                            None,
+                        )
+                    }
+                    None => {
+                        let origins: Vec<(DVec3, DVec3)> = positions
+                            .iter()
+                            .zip(&normals)
+                            .map(|(p, n)| (*p + *n * offset, *n))
+                            .collect();
+                        let d = decisions::decide_cell(
+                            &source,
+                            &set,
+                            &tree,
+                            &origins,
+                            &tracer,
+                            &settings.cut,
+                            &ring_prefix,
+                            &totals,
+                        );
+                        (d.deg, d.reason.clone(), Some(d))
+                    }
+                };
+                (cell, ring_prefix, totals)
+            },
+            || {
+                let frames = decisions::decide_frames(mesh);
                 let sampling = if interpolate {
                     let neighbours =
                         sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
@@ -324,7 +332,7 @@ impl<'a> Baker<'a> {
                 } else {
                     (Vec::new(), Vec::new())
                 };
-                (frames, ring_prefix, sampling)
+                (frames, sampling)
             },
         );
         settings.cut.cell_leaves = decisions::cell_leaves(resolution, cell_deg);
@@ -370,11 +378,6 @@ impl<'a> Baker<'a> {
             cuts::Prior::cells(&tree, settings.cut.cell_leaves)
         } else {
             Vec::new()
-        };
-        let hemisphere_totals = if sampled.is_empty() {
-            sparse::HemisphereTotals::default()
-        } else {
-            sparse::HemisphereTotals::new(&tree, &ring_prefix)
         };
         Ok(Self {
             scene,
@@ -542,6 +545,10 @@ impl<'a> Baker<'a> {
             &self.cell_neighbours,
             scratch,
             prior,
+            Some(cuts::LightGate {
+                prefix: &self.ring_prefix,
+                total: self.hemisphere_totals.at(n),
+            }),
         )
     }
 

@@ -152,6 +152,74 @@ pub fn ring_weight_prefix(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Vec<D
     prefix
 }
 
+/// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r
+/// depend on the elevation only (the rotation-worst light, [`ring_weight_prefix`]),
+/// so the total depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values,
+/// interpolated linearly.
+#[derive(Debug, Clone, Default)]
+pub struct HemisphereTotals {
+    table: Vec<f64>,
+}
+
+impl HemisphereTotals {
+    /// Table points over n·Y ∈ [−1, 1].
+    pub const SAMPLES: usize = 129;
+
+    pub fn new(tree: &LightTree, prefix: &[DVec3]) -> Self {
+        let table = (0..Self::SAMPLES)
+            .map(|i| {
+                let y = -1.0 + 2.0 * i as f64 / (Self::SAMPLES - 1) as f64;
+                let n = DVec3::new((1.0 - y * y).max(0.0).sqrt(), y, 0.0);
+                hemisphere_weight(tree, prefix, 0, 0, tree.leaf_count() as u32, n)
+            })
+            .collect();
+        Self { table }
+    }
+
+    /// The total for unit normal `n` (0 for an empty table).
+    pub fn at(&self, n: DVec3) -> f64 {
+        if self.table.len() < 2 {
+            return 0.0;
+        }
+        let x = (n.y.clamp(-1.0, 1.0) + 1.0) * 0.5 * (self.table.len() - 1) as f64;
+        let i = (x as usize).min(self.table.len() - 2);
+        let f = x - i as f64;
+        self.table[i] * (1.0 - f) + self.table[i + 1] * f
+    }
+}
+
+/// Σ max(r Ω d·n, 0) over the leaves of node `k` within [lo, hi) (prefix sums of r Ω d in `prefix`;
+/// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts
+/// through.
+pub fn hemisphere_weight(
+    tree: &LightTree,
+    prefix: &[DVec3],
+    k: u32,
+    lo: u32,
+    hi: u32,
+    normal: DVec3,
+) -> f64 {
+    if prefix.len() <= tree.leaf_count() {
+        return 0.0;
+    }
+    let node = tree.nodes()[k as usize];
+    let (first, end) = (node.first.max(lo), (node.first + node.count).min(hi));
+    if end <= first {
+        return 0.0;
+    }
+    let (max_cos, wholly_above) = node.horizon(normal);
+    if max_cos <= 0.0 {
+        return 0.0;
+    }
+    if wholly_above || node.is_leaf() {
+        return (prefix[end as usize] - prefix[first as usize])
+            .dot(normal)
+            .max(0.0);
+    }
+    hemisphere_weight(tree, prefix, node.left, lo, hi, normal)
+        + hemisphere_weight(tree, prefix, node.right, lo, hi, normal)
+}
+
 /// D(a, b) of the module docs: the weighted fraction of directions whose visibility differs between
 /// two cuts ((node, V) in pre-order), for the mean normal `n`. 0 when neither end sees any weight.
 pub fn visibility_difference(

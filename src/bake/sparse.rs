@@ -38,7 +38,7 @@
 //! pre-order, V in [0, 1]); no IO.
 
 use super::VertexCut;
-use super::refine::visibility_difference;
+use super::refine::{hemisphere_weight, visibility_difference};
 use crate::sphere::LightTree;
 use glam::DVec3;
 
@@ -184,74 +184,6 @@ pub fn interpolation_weights<'c>(
     )
 }
 
-/// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r
-/// depend on the elevation only (the rotation-worst light, [`super::refine::ring_weight_prefix`]),
-/// so the total depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values,
-/// interpolated linearly.
-#[derive(Debug, Clone, Default)]
-pub struct HemisphereTotals {
-    table: Vec<f64>,
-}
-
-impl HemisphereTotals {
-    /// Table points over n·Y ∈ [−1, 1].
-    pub const SAMPLES: usize = 129;
-
-    pub fn new(tree: &LightTree, prefix: &[DVec3]) -> Self {
-        let table = (0..Self::SAMPLES)
-            .map(|i| {
-                let y = -1.0 + 2.0 * i as f64 / (Self::SAMPLES - 1) as f64;
-                let n = DVec3::new((1.0 - y * y).max(0.0).sqrt(), y, 0.0);
-                hemisphere_weight(tree, prefix, 0, 0, tree.leaf_count() as u32, n)
-            })
-            .collect();
-        Self { table }
-    }
-
-    /// The total for unit normal `n` (0 for an empty table).
-    pub fn at(&self, n: DVec3) -> f64 {
-        if self.table.len() < 2 {
-            return 0.0;
-        }
-        let x = (n.y.clamp(-1.0, 1.0) + 1.0) * 0.5 * (self.table.len() - 1) as f64;
-        let i = (x as usize).min(self.table.len() - 2);
-        let f = x - i as f64;
-        self.table[i] * (1.0 - f) + self.table[i + 1] * f
-    }
-}
-
-/// Σ max(r Ω d·n, 0) over the leaves of node `k` within [lo, hi) (prefix sums of r Ω d in `prefix`;
-/// empty: 0): O(1) per node wholly above the horizon, recursing only where the horizon cuts
-/// through.
-fn hemisphere_weight(
-    tree: &LightTree,
-    prefix: &[DVec3],
-    k: u32,
-    lo: u32,
-    hi: u32,
-    normal: DVec3,
-) -> f64 {
-    if prefix.len() <= tree.leaf_count() {
-        return 0.0;
-    }
-    let node = tree.nodes()[k as usize];
-    let (first, end) = (node.first.max(lo), (node.first + node.count).min(hi));
-    if end <= first {
-        return 0.0;
-    }
-    let (max_cos, wholly_above) = node.horizon(normal);
-    if max_cos <= 0.0 {
-        return 0.0;
-    }
-    if wholly_above || node.is_leaf() {
-        return (prefix[end as usize] - prefix[first as usize])
-            .dot(normal)
-            .max(0.0);
-    }
-    hemisphere_weight(tree, prefix, node.left, lo, hi, normal)
-        + hemisphere_weight(tree, prefix, node.right, lo, hi, normal)
-}
-
 /// Pushes the largest tree nodes under `k` that lie within the leaf range [lo, hi), with value `v`,
 /// in leaf order, less those wholly below the horizon of `normal`.
 fn emit_range(
@@ -284,7 +216,7 @@ fn emit_range(
 /// dropped; and the fraction of the vertex's weighted hemisphere (per-leaf weights r Ω d as prefix
 /// sums in `prefix`, [`super::refine::ring_weight_prefix`]; empty: 0) that no cut covers, where the
 /// neighbours' horizons hide what the vertex sees: the uncovered weight over `total`, the whole
-/// hemisphere's ([`HemisphereTotals`]).
+/// hemisphere's ([`super::refine::HemisphereTotals`]).
 pub fn blend_cuts(
     tree: &LightTree,
     cuts: &[&[(u32, f32)]],
@@ -360,6 +292,7 @@ pub fn blend_cuts(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bake::refine::HemisphereTotals;
     use crate::sphere::DirectionSet;
 
     /// Agreed cells cell by cell, against a plain per-cell rule: known by every neighbour and the

@@ -186,17 +186,20 @@ pub struct BakeArgs {
     #[arg(long, default_value_t = glint::bake::CutSettings::default().epsilon)]
     pub epsilon: f64,
     /// Visibility cell size in degrees (one ray per cell; 0 traces every direction of the set).
-    /// Default: decided from the scene and the environment (11.25 or 5.625, printed with the
-    /// reason).
+    /// Default: decided from the scene and the environment (11.25, or 5.625 where 11.25° cells
+    /// cannot find the shadow edges; printed with the reason).
     #[arg(long)]
     pub cell_deg: Option<f64>,
     /// Times a visibility cell beside a cell of the other visibility (a shadow edge) is traced
-    /// again as
-    /// cells half as wide (0: off). Default: decided with the cell size (2 where small bright
-    /// lights
-    /// cast sharp shadows, else 0).
+    /// again as cells half as wide (0: off). Default: decided with the cell size (3 from 11.25°, 2
+    /// from 5.625°, where small bright lights cast sharp shadows; else 0).
     #[arg(long)]
     pub boundary_levels: Option<u32>,
+    /// Boundary refinement's light budget: per level, the shadow-edge cells that gate the least
+    /// light (under any rotation of the map about +Y) are left coarse while their light sums to at
+    /// most this fraction of a vertex's irradiance (0: refine every shadow-edge cell).
+    #[arg(long, default_value_t = glint::bake::CutSettings::default().boundary_budget)]
+    pub boundary_budget: f64,
     /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
     pub trace_leaves: usize,
@@ -308,8 +311,15 @@ impl BakeArgs {
                 self.refine_threshold
             );
         }
+        if !(self.boundary_budget >= 0.0 && self.boundary_budget.is_finite()) {
+            anyhow::bail!(
+                "--boundary-budget must be finite and >= 0, not {}",
+                self.boundary_budget
+            );
+        }
         let cut = CutSettings {
             epsilon: self.epsilon,
+            boundary_budget: self.boundary_budget,
             max_cut: self.max_cut,
             trace_leaves: self.trace_leaves,
             cell_leaves: 1,
