@@ -14,7 +14,8 @@
 //!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices; with
 //!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side;
 //!   with `traced`, each bake also with every vertex traced in full (no vertex sampling, decision
-//!   (f)), side by side.
+//!   (f)), side by side; with `unbudgeted`, each bake that refines shadow edges also as 5.625°
+//!   cells refined twice at every shadow edge (no light budget), side by side.
 //! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
 //!   per run (two runs, so the second shows warm caches): the bake's seconds (decisions and
 //!   refinement included), rays and the refined vertex count; then, for the isotropic J = 24 lobe
@@ -59,6 +60,8 @@ fn main() {
             Some(Baseline::OneRayAtATime)
         } else if sections.iter().any(|s| s == "traced") {
             Some(Baseline::EveryVertexTraced)
+        } else if sections.iter().any(|s| s == "unbudgeted") {
+            Some(Baseline::Unbudgeted)
         } else {
             None
         };
@@ -251,6 +254,10 @@ enum Baseline {
     OneRayAtATime,
     /// Every vertex traced in full (`RefineSettings::interpolate` off).
     EveryVertexTraced,
+    /// Where decision (d) refines shadow edges, 5.625° cells refined twice at every shadow edge (no
+    /// light budget): what the bake did before the budget and the 11.25° candidate with three
+    /// levels.
+    Unbudgeted,
 }
 
 /// `side_by_side`: each bake also as the baseline, in the same run.
@@ -258,6 +265,7 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
     let baseline = match side_by_side {
         Some(Baseline::OneRayAtATime) => " bake, one ray at a time (s) |",
         Some(Baseline::EveryVertexTraced) => " bake, every vertex traced (s; rays) |",
+        Some(Baseline::Unbudgeted) => " bake, 5.625° cells refined at every edge (s; rays) |",
         None => "",
     };
     println!(
@@ -277,6 +285,13 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
                     let mut settings = BakeSettings::default();
                     settings.refine.interpolate = baseline != Some(Baseline::EveryVertexTraced);
                     let mut baker = Baker::new(&scene, &env, settings).unwrap();
+                    if baseline == Some(Baseline::Unbudgeted) && baker.decisions.boundary_levels > 0
+                    {
+                        settings.cell_deg = Some(5.625);
+                        settings.boundary_levels = Some(2);
+                        settings.cut.boundary_budget = 0.0;
+                        baker = Baker::new(&scene, &env, settings).unwrap();
+                    }
                     baker
                         .tracer
                         .set_packets(baseline != Some(Baseline::OneRayAtATime));
@@ -301,7 +316,7 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
                 );
             }
             let base = match (base, side_by_side) {
-                (Some(s), Some(Baseline::EveryVertexTraced)) => {
+                (Some(s), Some(Baseline::EveryVertexTraced | Baseline::Unbudgeted)) => {
                     format!(" {base_secs:.2}; {:.1} M |", s.rays_traced as f64 / 1e6)
                 }
                 (Some(_), _) => format!(" {base_secs:.2} |"),

@@ -497,8 +497,7 @@ pub fn decide_cell(
     origins: &[(DVec3, DVec3)],
     tracer: &Tracer,
     cut: &CutSettings,
-    ring_prefix: &[DVec3],
-    totals: &super::refine::HemisphereTotals,
+    ring: &super::refine::RingLight,
 ) -> CellDecision {
     let luminance = leaf_grey(tree, &texel_radiance_from(env, set, 0.0));
     let resolution = set.resolution();
@@ -534,10 +533,6 @@ pub fn decide_cell(
                             agreed: &[],
                             record: false,
                         };
-                        let gate = super::cuts::LightGate {
-                            prefix: ring_prefix,
-                            total: totals.at(normal),
-                        };
                         let made = vertex_cut(
                             origin,
                             normal,
@@ -548,7 +543,7 @@ pub fn decide_cell(
                             neighbours,
                             scratch,
                             prior,
-                            Some(gate),
+                            Some(ring.gate(normal)),
                         );
                         cut_irradiance(tree, made.entries.iter().copied(), &luminance, normal)
                     })

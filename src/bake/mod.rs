@@ -188,8 +188,9 @@ pub struct Baker<'a> {
     normals: Vec<DVec3>,
     offset: f64,
     decision_seconds: f64,
-    /// Prefix sums of r Ω d over leaf order for the refinement's criterion ([`refine`]).
-    ring_prefix: Vec<DVec3>,
+    /// The rotation-worst light that refinement (e), vertex sampling (f) and the boundary
+    /// refinement's budget weigh visibility by ([`refine::RingLight`]).
+    ring: refine::RingLight,
     /// Which visibility cells border which (boundary refinement, [`CutSettings::boundary_levels`]).
     cell_neighbours: cuts::CellNeighbours,
     /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
@@ -198,7 +199,6 @@ pub struct Baker<'a> {
     /// empty when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
     sampled: Vec<bool>,
-    hemisphere_totals: refine::HemisphereTotals,
 }
 
 impl<'a> Baker<'a> {
@@ -263,22 +263,21 @@ impl<'a> Baker<'a> {
         // sampling set (f) need nothing of it: side by side.
         let interpolate = trace_visibility && settings.refine.interpolate;
         let (
-            ((cell_deg, cell_reason, cell_decision), ring_prefix, hemisphere_totals),
+            ((cell_deg, cell_reason, cell_decision), ring),
             ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled)),
         ) = rayon::join(
             || {
                 // The rotation-worst light per leaf: what refinement (e), vertex sampling (f) and
                 // the boundary refinement's budget weigh visibility by.
-                let ring_prefix = if trace_visibility {
-                    refine::ring_weight_prefix(
+                let ring = if trace_visibility {
+                    refine::RingLight::new(
                         &tree,
                         crate::light::LightSums::from_source(&source, &set, &tree, 0.0)
                             .leaf_radiance(),
                     )
                 } else {
-                    Vec::new()
+                    refine::RingLight::default()
                 };
-                let totals = refine::HemisphereTotals::new(&tree, &ring_prefix);
                 let cell = match settings.cell_deg {
                     Some(deg) => (
                         deg,
@@ -314,13 +313,12 @@ impl<'a> Baker<'a> {
                             &origins,
                             &tracer,
                             &settings.cut,
-                            &ring_prefix,
-                            &totals,
+                            &ring,
                         );
                         (d.deg, d.reason.clone(), Some(d))
                     }
                 };
-                (cell, ring_prefix, totals)
+                (cell, ring)
             },
             || {
                 let frames = decisions::decide_frames(mesh);
@@ -391,10 +389,9 @@ impl<'a> Baker<'a> {
             normals,
             offset,
             decision_seconds: start.elapsed().as_secs_f64(),
-            ring_prefix,
+            ring,
             cell_neighbours,
             cells,
-            hemisphere_totals,
             vertex_neighbours,
             sampled,
         })
@@ -545,10 +542,7 @@ impl<'a> Baker<'a> {
             &self.cell_neighbours,
             scratch,
             prior,
-            Some(cuts::LightGate {
-                prefix: &self.ring_prefix,
-                total: self.hemisphere_totals.at(n),
-            }),
+            Some(self.ring.gate(n)),
         )
     }
 
@@ -667,7 +661,7 @@ impl<'a> Baker<'a> {
                             max_edge,
                             threshold,
                             &self.tree,
-                            &self.ring_prefix,
+                            &self.ring.prefix,
                             &cut_of,
                         )?;
                         let cuts: Vec<&[(u32, f32)]> =
@@ -678,8 +672,8 @@ impl<'a> Baker<'a> {
                             &cuts,
                             &w,
                             self.normals[v],
-                            &self.ring_prefix,
-                            self.hemisphere_totals.at(self.normals[v]),
+                            &self.ring.prefix,
+                            self.ring.totals.at(self.normals[v]),
                         );
                         cut.epsilon_used = epsilon;
                         (uncovered <= threshold).then_some(cut)
@@ -754,7 +748,7 @@ impl<'a> Baker<'a> {
         let r = self.settings.refine;
         let mut decisions = self.decisions.clone();
         let base_count = base.vertex_count();
-        if !self.decisions.trace_visibility || r.rounds == 0 || self.ring_prefix.is_empty() {
+        if !self.decisions.trace_visibility || r.rounds == 0 || self.ring.prefix.is_empty() {
             decisions.refine_reason = if r.rounds == 0 {
                 "refinement off (0 rounds)".into()
             } else {
@@ -805,7 +799,7 @@ impl<'a> Baker<'a> {
                             .try_normalize()
                             .unwrap_or(DVec3::Y);
                         let differ =
-                            refine::visibility_difference(&self.tree, &self.ring_prefix, ca, cb, n)
+                            refine::visibility_difference(&self.tree, &self.ring.prefix, ca, cb, n)
                                 > r.threshold;
                         differ.then_some((a, b))
                     },

@@ -152,6 +152,31 @@ pub fn ring_weight_prefix(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Vec<D
     prefix
 }
 
+/// The rotation-worst light of a map as the bake weighs visibility by it: the prefix sums of
+/// [`ring_weight_prefix`] and their hemisphere totals per normal (empty where nothing is traced).
+#[derive(Debug, Clone, Default)]
+pub struct RingLight {
+    pub prefix: Vec<DVec3>,
+    pub totals: HemisphereTotals,
+}
+
+impl RingLight {
+    /// From the mean radiance per leaf (tree order) at any rotation.
+    pub fn new(tree: &LightTree, leaf_radiance: &[[f64; 3]]) -> Self {
+        let prefix = ring_weight_prefix(tree, leaf_radiance);
+        let totals = HemisphereTotals::new(tree, &prefix);
+        Self { prefix, totals }
+    }
+
+    /// The boundary refinement's gate at a vertex of unit normal `n`.
+    pub fn gate(&self, n: DVec3) -> super::cuts::LightGate<'_> {
+        super::cuts::LightGate {
+            prefix: &self.prefix,
+            total: self.totals.at(n),
+        }
+    }
+}
+
 /// The weight Σ max(r Ω d·n, 0) of the whole hemisphere about a normal n, per n. The weights r
 /// depend on the elevation only (the rotation-worst light, [`ring_weight_prefix`]),
 /// so the total depends on n·Y only: tabulated at [`HemisphereTotals::SAMPLES`] values,
