@@ -815,7 +815,7 @@ pub fn fit_gltf(objective: &Objective, first: &PbrFallback) -> PbrFallback {
 pub fn fit_preview(objective: &Objective, gltf: &PbrFallback) -> PreviewSurfaceFallback {
     let coat = gltf
         .clearcoat
-        .map_or((0.0, 0.1), |c| (c.factor, c.roughness));
+        .map_or((0.0, MIN_COAT_ROUGHNESS), |c| (c.factor, c.roughness));
     let m = gltf.metallic;
     let start_colours = (
         gltf.base_color,
@@ -824,7 +824,11 @@ pub fn fit_preview(objective: &Objective, gltf: &PbrFallback) -> PreviewSurfaceF
     let mut best: Option<(PreviewParams, f64)> = None;
     for specular_workflow in [false, true] {
         // The glTF fit's coat, and the other choice: none when it has one, a fresh one when not.
-        let other = if coat.0 > 0.0 { (0.0, 0.1) } else { (1.0, 0.1) };
+        let other = if coat.0 > 0.0 {
+            (0.0, MIN_COAT_ROUGHNESS)
+        } else {
+            (1.0, MIN_COAT_ROUGHNESS)
+        };
         for (cc, rc) in [coat, other] {
             let make = |y: &[f64]| PreviewParams {
                 use_specular_workflow: specular_workflow,
