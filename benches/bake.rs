@@ -280,18 +280,24 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
             glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
         for map in maps {
             let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+            // The unbudgeted baseline's settings, decided once outside the timing (so that its
+            // bakes make one set of decisions, as the default's do).
+            let refines = side_by_side == Some(Baseline::Unbudgeted)
+                && Baker::new(&scene, &env, BakeSettings::default())
+                    .unwrap()
+                    .decisions
+                    .boundary_levels
+                    > 0;
             let bake = |baseline: Option<Baseline>| {
                 median_of(3, || {
                     let mut settings = BakeSettings::default();
                     settings.refine.interpolate = baseline != Some(Baseline::EveryVertexTraced);
-                    let mut baker = Baker::new(&scene, &env, settings).unwrap();
-                    if baseline == Some(Baseline::Unbudgeted) && baker.decisions.boundary_levels > 0
-                    {
+                    if baseline == Some(Baseline::Unbudgeted) && refines {
                         settings.cell_deg = Some(5.625);
                         settings.boundary_levels = Some(2);
                         settings.cut.boundary_budget = 0.0;
-                        baker = Baker::new(&scene, &env, settings).unwrap();
                     }
+                    let mut baker = Baker::new(&scene, &env, settings).unwrap();
                     baker
                         .tracer
                         .set_packets(baseline != Some(Baseline::OneRayAtATime));

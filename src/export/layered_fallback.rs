@@ -734,9 +734,14 @@ pub fn fit_gltf(objective: &Objective, first: &PbrFallback) -> PbrFallback {
     // The one-lobe model refitted under this objective.
     let (mut best, mut best_cost) = fit_from(objective, from_params(&first_params), &base);
     let mut active = base.clone();
-    type Stage = (&'static [usize], &'static [&'static [(usize, f64)]]);
+    // (the layer's parameters, its starts, the fraction of the objective it must reach to stay)
+    type Stage = (&'static [usize], &'static [&'static [(usize, f64)]], f64);
     let stages: [Stage; 3] = [
-        (&[2, 3], &[&[(2, 1.0), (3, 0.04)], &[(2, 1.0), (3, 0.08)]]),
+        (
+            &[2, 3],
+            &[&[(2, 1.0), (3, 0.04)], &[(2, 1.0), (3, 0.08)]],
+            KEEP_LAYER,
+        ),
         (
             &[4, 5],
             &[
@@ -744,10 +749,15 @@ pub fn fit_gltf(objective: &Objective, first: &PbrFallback) -> PbrFallback {
                 &[(4, 0.5), (5, 0.5)],
                 &[(4, 1.0), (5, MIN_COAT_ROUGHNESS), (1, 0.7)],
             ],
+            KEEP_LAYER,
         ),
-        (&[6, 7], &[&[(6, 0.5), (7, 0.3)], &[(6, 0.5), (7, 0.8)]]),
+        (
+            &[6, 7],
+            &[&[(6, 0.5), (7, 0.3)], &[(6, 0.5), (7, 0.8)]],
+            KEEP_SHEEN,
+        ),
     ];
-    for (layer, starts) in stages {
+    for (layer, starts, keep) in stages {
         let mut trial: Vec<usize> = active.clone();
         trial.extend_from_slice(layer);
         let mut stage_best = (best, f64::INFINITY);
@@ -761,11 +771,6 @@ pub fn fit_gltf(objective: &Objective, first: &PbrFallback) -> PbrFallback {
                 stage_best = (y, c);
             }
         }
-        let keep = if layer == [6, 7] {
-            KEEP_SHEEN
-        } else {
-            KEEP_LAYER
-        };
         if stage_best.1 <= keep * best_cost {
             (best, best_cost) = stage_best;
             active = trial;
