@@ -23,6 +23,9 @@ pub struct LoadedBake {
     pub env: EnvMap,
     /// The tangent frames of the refined mesh (`None`: isotropic only).
     pub tangents: Option<Vec<Vec4>>,
+    /// How the refined mesh's new vertices were made ([`super::Refinement::parents`]): the
+    /// imported mesh is its first vertices, so a point of the refined mesh can be placed on it.
+    pub parents: Vec<[u32; 2]>,
 }
 
 /// Why a bake cannot be loaded.
@@ -98,6 +101,7 @@ impl LoadedBake {
             scene,
             env,
             tangents,
+            parents: refinement.parents,
         })
     }
 

@@ -450,6 +450,21 @@ impl<'a> Baker<'a> {
         out
     }
 
+    /// Cuts at arbitrary surface points — (position on the smooth surface, unit normal) — traced
+    /// with this bake's cells, boundary refinement and light budget, each on its own (no
+    /// neighbours' help): the per-pixel visibility of a traced frame
+    /// ([`crate::render::traced`]). Point i's cut is row i; with the rays cast.
+    pub fn point_cuts(&self, points: &[(DVec3, DVec3)]) -> (Cuts, u64) {
+        let points: Vec<Option<(DVec3, DVec3)>> = points.iter().copied().map(Some).collect();
+        let mut cuts = Cuts::with_vertices(points.len());
+        let mut rays = 0u64;
+        self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
+            rays += cut.rays;
+            cuts.set(i, &cut.entries)
+        });
+        (cuts, rays)
+    }
+
     /// (position, unit normal) of each vertex, `None` for an index out of range.
     fn points_of(&self, vertices: &[u32]) -> Vec<Option<(DVec3, DVec3)>> {
         vertices
@@ -765,16 +780,8 @@ impl<'a> Baker<'a> {
         // normals describe, as the imported vertices' do, not on the flat facet below it (which
         // would see the neighbouring facets at grazing angles: the shadow-terminator problem).
         let mut blends: Vec<Vec<(u32, f64)>> = Vec::new();
-        let base_count_u32 = base_count as u32;
         let blend_of = |blends: &Vec<Vec<(u32, f64)>>, v: u32| -> Vec<(u32, f64)> {
-            if v < base_count_u32 {
-                vec![(v, 1.0)]
-            } else {
-                blends
-                    .get((v - base_count_u32) as usize)
-                    .cloned()
-                    .unwrap_or_default()
-            }
+            refine::blend_of(blends, base_count, v)
         };
         let mut parents_all: Vec<[u32; 2]> = Vec::new();
         let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
@@ -813,15 +820,7 @@ impl<'a> Baker<'a> {
             let first_new = state.vertex_count();
             since = first_new as u32;
             for &[a, b] in &parents {
-                let mut blend = blend_of(&blends, a);
-                for (v, w) in blend_of(&blends, b) {
-                    match blend.iter_mut().find(|(u, _)| *u == v) {
-                        Some(entry) => entry.1 += w,
-                        None => blend.push((v, w)),
-                    }
-                }
-                blend.iter_mut().for_each(|e| e.1 *= 0.5);
-                blends.push(blend);
+                refine::push_midpoint_blend(&mut blends, base_count, a, b);
             }
             let points: Vec<Option<(DVec3, DVec3)>> = (first_new..mesh.positions.len())
                 .map(|v| {

@@ -118,6 +118,39 @@ impl Refinement {
     }
 }
 
+/// Each midpoint of `parents` (vertex `base_count + k` halves edge `parents[k]`) as a blend of base
+/// vertices, (vertex, weight) with weights summing to 1: where it lies on the imported mesh, whose
+/// smooth surface ([`crate::scene::smooth_surface_point`]) its rays start from. A midpoint lies on
+/// one base triangle, so a blend has at most three vertices on a conforming refinement.
+pub fn base_blends(base_count: usize, parents: &[[u32; 2]]) -> Vec<Vec<(u32, f64)>> {
+    let mut blends: Vec<Vec<(u32, f64)>> = Vec::with_capacity(parents.len());
+    for &[a, b] in parents {
+        push_midpoint_blend(&mut blends, base_count, a, b);
+    }
+    blends
+}
+
+/// Vertex v as a blend of base vertices ([`base_blends`], those made so far in `blends`).
+pub fn blend_of(blends: &[Vec<(u32, f64)>], base_count: usize, v: u32) -> Vec<(u32, f64)> {
+    match (v as usize).checked_sub(base_count) {
+        None => vec![(v, 1.0)],
+        Some(k) => blends.get(k).cloned().unwrap_or_default(),
+    }
+}
+
+/// Appends to `blends` the blend of the midpoint of edge (a, b) ([`base_blends`]).
+pub fn push_midpoint_blend(blends: &mut Vec<Vec<(u32, f64)>>, base_count: usize, a: u32, b: u32) {
+    let mut blend = blend_of(blends, base_count, a);
+    for (v, w) in blend_of(blends, base_count, b) {
+        match blend.iter_mut().find(|(u, _)| *u == v) {
+            Some(entry) => entry.1 += w,
+            None => blend.push((v, w)),
+        }
+    }
+    blend.iter_mut().for_each(|e| e.1 *= 0.5);
+    blends.push(blend);
+}
+
 /// Per leaf (tree order), r_ℓ Ω_ℓ d_ℓ as prefix sums (length L + 1): r_ℓ is the largest luminance
 /// of `leaf_radiance` (mean radiance per leaf, tree order, at any rotation) among leaves within
 /// about a leaf's size of ℓ's elevation — the brightest light that some rotation about +Y brings to

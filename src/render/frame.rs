@@ -4,12 +4,14 @@
 //!
 //! Inputs: a [`LoadedBake`], a [`Material`], a camera and image size, the environment's rotation.
 //! Output: a linear [`Image`] (object pixels only; the caller fills the background) and what
-//! rendered it, in words. Invariants: the reference's shadow rays leave the surface at 1e-4 of the
+//! rendered it, in words. With `traced`, the PRT frame's visibility is traced per pixel where a
+//! triangle's corners disagree ([`super::traced`], `glint render --trace-visibility`), by a
+//! [`Baker`] made with the bake's own decisions. Invariants: the reference's shadow rays leave the surface at 1e-4 of the
 //! scene's diagonal (docs/conventions.md §6); an anisotropic material on a scene without tangents
 //! is an error.
 
 use super::{ExactMaterial, Image, Prt, PrtSettings, Shading, Specular, render_reference, table};
-use crate::bake::{LoadedBake, Tracer};
+use crate::bake::{BakeError, Baker, LoadedBake, Tracer};
 use crate::brdf::standard::StandardMaterial;
 use crate::fit::material::Material;
 use crate::light::LightSums;
@@ -25,6 +27,8 @@ pub enum FrameError {
     NoSamples,
     #[error(transparent)]
     Sphere(#[from] SphereError),
+    #[error(transparent)]
+    Bake(#[from] BakeError),
 }
 
 /// The reference's shadow-ray offset for a bake: 1e-4 of the scene's diagonal.
@@ -40,13 +44,15 @@ pub fn material_lobes(bake: &LoadedBake, material: &Material) -> Result<LobeSet,
     Ok(material.lobes()?)
 }
 
-/// The CPU PRT frame (default settings, p tabulated at its default resolution).
+/// The CPU PRT frame (default settings, p tabulated at its default resolution); `traced`: with
+/// per-pixel traced visibility.
 pub fn prt_frame(
     bake: &LoadedBake,
     material: &Material,
     camera: &Camera,
     (w, h): (u32, u32),
     rotation_rad: f64,
+    traced: bool,
 ) -> Result<(Image, String), FrameError> {
     let lobes = material_lobes(bake, material)?;
     let c = &material.coefficients;
@@ -60,8 +66,8 @@ pub fn prt_frame(
         f0: material.f0,
         specular: Specular::Table(&t),
     };
-    let img = prt_render(bake, camera, (w, h), rotation_rad, &shading)?;
-    Ok((img, format!("PRT, p(h) table {}²", t.resolution())))
+    let (img, how) = prt_render(bake, camera, (w, h), rotation_rad, &shading, traced)?;
+    Ok((img, format!("PRT{how}, p(h) table {}²", t.resolution())))
 }
 
 /// The CPU PRT frame of a standard material (an exported fallback): the same light runs as
@@ -72,14 +78,15 @@ pub fn prt_frame_standard(
     camera: &Camera,
     size: (u32, u32),
     rotation_rad: f64,
+    traced: bool,
 ) -> Result<(Image, String), FrameError> {
     let shading = Shading {
         rho_d: material.back_facing_rho(),
         f0: 0.04,
         specular: Specular::Standard(material),
     };
-    let img = prt_render(bake, camera, size, rotation_rad, &shading)?;
-    Ok((img, format!("PRT of the {}", standard_name(material))))
+    let (img, how) = prt_render(bake, camera, size, rotation_rad, &shading, traced)?;
+    Ok((img, format!("PRT{how} of the {}", standard_name(material))))
 }
 
 fn standard_name(material: &StandardMaterial) -> &'static str {
@@ -89,14 +96,39 @@ fn standard_name(material: &StandardMaterial) -> &'static str {
     }
 }
 
-/// A PRT frame with default settings.
+/// A PRT frame with default settings, and how its visibility was had, in words (empty: the
+/// corners' cuts).
 fn prt_render(
     bake: &LoadedBake,
     camera: &Camera,
     (w, h): (u32, u32),
     rotation_rad: f64,
     shading: &Shading,
-) -> Result<Image, FrameError> {
+    traced: bool,
+) -> Result<(Image, String), FrameError> {
+    if traced {
+        let baker = bake_tracer(bake)?;
+        let light = LightSums::new(&bake.env, &baker.set, &baker.tree, rotation_rad);
+        let (img, stats) = super::render_traced(
+            &baker,
+            &bake.scene.mesh,
+            &bake.cuts,
+            &bake.parents,
+            bake.tangents.as_deref(),
+            &light,
+            camera,
+            (w, h),
+            shading,
+            PrtSettings::default(),
+        );
+        let how = format!(
+            " with visibility traced at {} of {} pixels ({:.2} M rays)",
+            stats.traced,
+            stats.pixels,
+            stats.rays as f64 / 1e6
+        );
+        return Ok((img, how));
+    }
     let (set, tree) = bake.light_tree()?;
     let light = LightSums::new(&bake.env, &set, &tree, rotation_rad);
     let prt = Prt::new(
@@ -106,7 +138,14 @@ fn prt_render(
         bake.tangents.as_deref(),
         PrtSettings::default(),
     );
-    Ok(prt.render(&light, camera, w, h, shading))
+    Ok((prt.render(&light, camera, w, h, shading), String::new()))
+}
+
+/// A [`Baker`] over the bake's mesh that traces a frame's pixels as
+/// [`super::traced::tracing_settings`] says; no decision is made again.
+pub fn bake_tracer(bake: &LoadedBake) -> Result<Baker<'_>, FrameError> {
+    let settings = super::traced::tracing_settings(bake.header.settings, &bake.header.decisions);
+    Ok(Baker::new(&bake.scene, &bake.env, settings)?)
 }
 
 /// The Monte Carlo reference with `spp` samples per pixel.

@@ -4,6 +4,8 @@
 //! - [`table`]: p(h) on the hemi-octahedral map, with pre-filtered levels.
 //! - [`prt`]: eq. 22 per vertex, then raster interpolation — what every frame costs.
 //! - [`reference`]: exact visibility by ray casting, exact lobes, the environment map itself, MIS.
+//! - [`traced`]: the PRT frame with visibility traced per pixel where a triangle's corners disagree
+//!   (the knob for shadow edges inside triangles).
 //! - [`frame`]: a material on a bake as `glint render` renders it (the PRT frame or the reference).
 //! - [`image`]: linear images, relative RMSE, EXR and tone-mapped PNG output (atomic).
 //!
@@ -17,8 +19,10 @@ pub mod image;
 pub mod prt;
 pub mod reference;
 pub mod table;
+pub mod traced;
 
 pub use image::{Image, ImageError};
 pub use prt::{Prt, PrtSettings, Shading, Specular, VertexLight};
 pub use reference::{ExactMaterial, ReferenceScene, render_reference, render_reference_standard};
 pub use table::PhPyramid;
+pub use traced::{TracedStats, render_traced};

@@ -29,4 +29,5 @@ mod qp;
 mod render;
 mod render_cases;
 mod tidy;
+mod traced_visibility;
 mod transfer;

@@ -66,6 +66,10 @@ pub struct RenderArgs {
     /// or with --reference the Monte Carlo reference.
     #[arg(long, conflicts_with = "gpu")]
     pub fallback: bool,
+    /// PRT frame: trace each pixel's own visibility where its triangle's corners disagree (shadow
+    /// edges inside triangles), with the bake's visibility cells; slower, a still's accuracy.
+    #[arg(long, conflicts_with_all = ["gpu", "reference"])]
+    pub trace_visibility: bool,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,

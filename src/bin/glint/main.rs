@@ -260,10 +260,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let (c, size, r) = (&camera, (w, h), rotation);
     let (mut image, what) = match (args.reference, &fallback) {
         (Some(n), Some(f)) => frame::reference_frame_standard(&bake, f, c, size, r, n)?,
-        (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r)?,
+        (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r, args.trace_visibility)?,
         (Some(spp), None) => frame::reference_frame(&bake, &material, c, size, r, spp)?,
         (None, None) if args.gpu => glint::gpu::preview_frame(&bake, &material, c, size, r)?,
-        (None, None) => frame::prt_frame(&bake, &material, c, size, r)?,
+        (None, None) => frame::prt_frame(&bake, &material, c, size, r, args.trace_visibility)?,
     };
     let seconds = start.elapsed().as_secs_f64();
     image.fill_background(&bake.env, rotation, &camera);

@@ -1,0 +1,214 @@
+//! A PRT frame whose visibility is traced at the covered pixels themselves: the still frame for
+//! views where visibility changes inside the mesh's triangles.
+//!
+//! The default PRT frame ([`super::prt`]) shades every covered pixel at its own surface point but
+//! blends its triangle's three corner cuts for V. Where a shadow edge crosses a triangle — a sphere's
+//! shadow on a two-triangle ground, a teapot's spout over its body — no blend of the corners'
+//! visibility is the visibility inside it, and no refinement of the bake short of one vertex per
+//! pixel removes that. Here each covered pixel whose corners' cuts differ gets a cut of its own,
+//! traced by the bake's own cut algorithm ([`Baker::point_cuts`]: the same visibility cells,
+//! boundary refinement and light budget) from the pixel's point on the smooth surface, where the
+//! Monte Carlo reference starts its shadow rays (docs/conventions.md §6). Pixels whose corners agree
+//! take that cut as it is (the blend of three equal cuts). Everything after the cuts — the light
+//! runs, the BRDF, grazing tiers, resolved leaves — is the PRT frame's, unchanged: the covered
+//! pixels become the vertices of a point mesh that [`Prt`] shades one by one.
+//!
+//! Inputs: a [`Baker`] over the mesh the bake's cuts belong to (its tree is the light sums'), the
+//! mesh, its cuts and tangents, the light, camera, image size, the material, [`PrtSettings`]
+//! (`per_pixel` is implied). Output: an [`Image`] and [`TracedStats`]. Invariants: no IO; the same
+//! result for any thread count (each pixel's cut depends on its point alone); the ray tracing
+//! happens here, in the bake's code, not in the PRT renderer.
+
+use super::image::Image;
+use super::prt::{Prt, PrtSettings, Shading, ShadingPoint};
+use crate::bake::refine::base_blends;
+use crate::bake::{BakeSettings, Baker, Cuts, Decisions};
+use crate::light::LightSums;
+use crate::raster::rasterize;
+use crate::scene::{Camera, Mesh, smooth_surface_point};
+use glam::{DVec3, Vec3, Vec4};
+
+/// Pixels shaded per block: a block's cuts and their leaf ranges are the only ones held at once
+/// (about 2 KiB a pixel).
+const BLOCK: usize = 1 << 15;
+
+/// The fewest boundary levels a traced frame refines its pixels' cells by: decision (d) may leave
+/// a bake's 11.25° cells unrefined where its probes see no shadow edge, and a pixel's own cut is
+/// cheap next to the picture it fixes (the teapot under courtyard_1k, default view, one sharp lobe,
+/// 128×96: 8.8 % off Monte Carlo by default, 9.3 % traced with unrefined cells, 2.7 % with three
+/// levels at 0.48 M rays, less the reference's noise).
+pub const TRACED_BOUNDARY_LEVELS: u32 = 3;
+
+/// The settings a [`Baker`] traces a frame's pixels with, from a bake's settings and decisions:
+/// its direction set, cell size and light budget, cells at shadow edges traced again at least
+/// [`TRACED_BOUNDARY_LEVELS`] times, and no vertex sampling (each pixel is traced on its own).
+pub fn tracing_settings(bake: BakeSettings, decisions: &Decisions) -> BakeSettings {
+    let mut settings = bake;
+    settings.resolution = Some(decisions.resolution);
+    settings.cell_deg = Some(decisions.cell_deg);
+    settings.boundary_levels = Some(decisions.boundary_levels.max(TRACED_BOUNDARY_LEVELS));
+    settings.force_trace = decisions.trace_visibility;
+    settings.refine.interpolate = false;
+    settings
+}
+
+/// What a traced frame did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TracedStats {
+    /// Covered pixels.
+    pub pixels: usize,
+    /// Pixels whose corners' cuts differ, traced on their own.
+    pub traced: usize,
+    /// Occlusion rays cast for them.
+    pub rays: u64,
+}
+
+/// The frame: eq. 22 at every covered pixel's surface point, with that point's own traced cut
+/// where its triangle's corners disagree (module docs). `baker` must trace the surface of `mesh`
+/// (the mesh `cuts` belong to) over the tree `light` was summed for; `parents` is how the bake
+/// refined it ([`crate::bake::Refinement::parents`], empty if not), so that rays start from the
+/// imported mesh's smooth surface, as the reference's and the bake's do.
+#[allow(clippy::too_many_arguments)] // the bake's parts, the light, the view and the material
+pub fn render_traced(
+    baker: &Baker,
+    mesh: &Mesh,
+    cuts: &Cuts,
+    parents: &[[u32; 2]],
+    tangents: Option<&[Vec4]>,
+    light: &LightSums,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    shading: &Shading,
+    settings: PrtSettings,
+) -> (Image, TracedStats) {
+    let settings = PrtSettings {
+        per_pixel: true,
+        ..settings
+    };
+    let base_count = mesh.positions.len().saturating_sub(parents.len());
+    let blends = base_blends(base_count, parents);
+    let fragments = rasterize(mesh, camera, width, height);
+    let eye = camera.eye().as_dvec3();
+    let mut image = Image::new(width, height);
+    let mut stats = TracedStats {
+        pixels: fragments.len(),
+        ..TracedStats::default()
+    };
+    for block in fragments.chunks(BLOCK) {
+        let mut points = Mesh {
+            positions: Vec::with_capacity(block.len()),
+            normals: Vec::with_capacity(block.len()),
+            tangents: None,
+            uvs: None,
+            triangles: Vec::new(),
+        };
+        let mut point_tangents: Vec<Vec4> = Vec::new();
+        // Per pixel: the corner whose cut it takes, or None where it is traced.
+        let mut agreed: Vec<Option<u32>> = Vec::with_capacity(block.len());
+        let mut origins: Vec<(DVec3, DVec3)> = Vec::new();
+        for f in block {
+            let Some(&tri) = mesh.triangles.get(f.triangle as usize) else {
+                // Not a triangle of the mesh: a degenerate point, shaded black as by the PRT.
+                points.positions.push(Vec3::ZERO);
+                points.normals.push(Vec3::ZERO);
+                point_tangents.push(Vec4::ZERO);
+                agreed.push(Some(0));
+                continue;
+            };
+            let b = f.bary.map(|x| x as f64);
+            let corners = [(tri[0], b[0]), (tri[1], b[1]), (tri[2], b[2])];
+            let position: DVec3 = corners
+                .iter()
+                .map(|&(v, w)| mesh.positions[v as usize].as_dvec3() * w)
+                .sum();
+            let normal = corners
+                .iter()
+                .map(|&(v, w)| mesh.normals[v as usize].as_dvec3() * w)
+                .sum::<DVec3>()
+                .normalize_or_zero();
+            points.positions.push(position.as_vec3());
+            points.normals.push(normal.as_vec3());
+            if let Some(t) = tangents {
+                point_tangents.push((0..3).map(|i| t[tri[i] as usize] * f.bary[i]).sum());
+            }
+            let same = |a: u32, b: u32| {
+                let (a, b) = (a as usize, b as usize);
+                cuts.nodes_of(a) == cuts.nodes_of(b) && cuts.quantised(a) == cuts.quantised(b)
+            };
+            if same(tri[0], tri[1]) && same(tri[0], tri[2]) {
+                agreed.push(Some(tri[0]));
+            } else {
+                agreed.push(None);
+                origins.push((
+                    origin(mesh, &blends, base_count, &corners, position),
+                    normal,
+                ));
+            }
+        }
+        let (traced, rays) = baker.point_cuts(&origins);
+        stats.traced += origins.len();
+        stats.rays += rays;
+        let mut point_cuts = Cuts::with_vertices(block.len());
+        let (mut row, mut entries) = (0, Vec::new());
+        for (i, corner) in agreed.iter().enumerate() {
+            match corner {
+                Some(v) => cuts.cut_into(*v as usize, &mut entries),
+                None => {
+                    traced.cut_into(row, &mut entries);
+                    row += 1;
+                }
+            }
+            point_cuts.set(i, &entries);
+        }
+        let prt = Prt::new(
+            &points,
+            &point_cuts,
+            &baker.tree,
+            tangents.map(|_| point_tangents.as_slice()),
+            settings,
+        );
+        let shading_points: Vec<ShadingPoint> = (0..block.len() as u32)
+            .map(|i| ShadingPoint {
+                corners: [i; 3],
+                bary: [1.0, 0.0, 0.0],
+            })
+            .collect();
+        let radiance = prt.shade_points(&shading_points, light, eye, shading);
+        for (f, rgb) in block.iter().zip(&radiance) {
+            image.set(f.x, f.y, rgb.map(|x| x as f32));
+        }
+    }
+    (image, stats)
+}
+
+/// Where a pixel's rays start: its point lifted onto the imported mesh's smooth surface (the
+/// refined triangle's corners as blends of the imported vertices, `blends[v - base_count]`; the
+/// first `base_count` vertices are the imported ones). A refined triangle's midpoints lie on its
+/// imported triangle, so lifting against them would start rays on the flat facet.
+fn origin(
+    mesh: &Mesh,
+    blends: &[Vec<(u32, f64)>],
+    base_count: usize,
+    corners: &[(u32, f64); 3],
+    position: DVec3,
+) -> DVec3 {
+    let mut base: Vec<(u32, f64)> = Vec::with_capacity(3);
+    for &(v, w) in corners {
+        let own = [(v, 1.0)];
+        let blend = match (v as usize).checked_sub(base_count) {
+            Some(k) => blends.get(k).map_or(&own[..], Vec::as_slice),
+            None => &own[..],
+        };
+        for &(u, x) in blend {
+            match base.iter_mut().find(|(b, _)| *b == u) {
+                Some(entry) => entry.1 += w * x,
+                None => base.push((u, w * x)),
+            }
+        }
+    }
+    if base.len() > 3 {
+        // Not within one imported triangle (a non-conforming refinement): its own corners.
+        return smooth_surface_point(mesh, corners, position);
+    }
+    smooth_surface_point(mesh, &base, position)
+}
