@@ -78,6 +78,9 @@ impl Default for BakeSettings {
     }
 }
 
+/// Decision (d)'s probes spread over the surface by area ([`decisions::CELL_PROBES`]).
+const CELL_AREA_PROBES: usize = decisions::CELL_PROBES / 2;
+
 /// Points baked per batch ([`Baker::bake_points`]): a batch's cuts are the only unpacked ones alive
 /// (~8 MiB of them), and its end costs the threads one wait.
 const BATCH: usize = 1 << 14;
@@ -306,11 +309,13 @@ impl<'a> Baker<'a> {
                             .zip(&normals)
                             .map(|(p, n)| (*p + *n * offset, *n))
                             .collect();
+                        let area = decisions::area_probes(mesh, CELL_AREA_PROBES, offset);
                         let d = decisions::decide_cell(
                             &source,
                             &set,
                             &tree,
                             &origins,
+                            &area,
                             &tracer,
                             &settings.cut,
                             &ring,

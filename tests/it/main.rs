@@ -28,6 +28,6 @@ mod properties;
 mod qp;
 mod render;
 mod render_cases;
+mod shadow_edges;
 mod tidy;
-mod traced_visibility;
 mod transfer;

@@ -1,0 +1,259 @@
+//! Shadow edges that cross a mesh's triangles, against the Monte Carlo reference: where the
+//! triangles are large, decision (d)'s probes spread by area refine the cells a shadow on them
+//! needs (the brushed sphere's shadow on its two-triangle ground under the interior map, a
+//! diffuse material so that only visibility is compared); where no blend of a triangle's corner
+//! cuts is the visibility inside it, the frame traced per pixel (`glint::render::traced`, `glint
+//! render --trace-visibility`) is (the teapot's spout and lid under the courtyard sky, one sharp
+//! lobe); and where nothing can occlude, the traced frame is the default frame and casts no ray.
+
+use crate::common;
+use crate::render_cases::one_sharp_lobe;
+
+use glint::bake::{BakeSettings, Baker};
+use glint::light::LightSums;
+use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
+use glint::render::reference::{ExactMaterial, render_reference};
+use glint::render::render_traced;
+use glint::render::traced::tracing_settings;
+
+/// A mesh under a map, baked as `glint bake` does, its default frame and its traced frame against
+/// two Monte Carlo references (the second for the reference's own noise).
+struct Measured {
+    decisions: glint::bake::Decisions,
+    stats: glint::render::TracedStats,
+    /// Relative RMSE over object pixels, less the reference's noise: default, traced.
+    default: f64,
+    traced: f64,
+}
+
+/// `diffuse`: ρd 0.8 and no lobe; else [`one_sharp_lobe`].
+fn measure(
+    mesh: &std::path::Path,
+    map: &std::path::Path,
+    diffuse: bool,
+    (w, h): (u32, u32),
+    spp: u32,
+) -> Measured {
+    let scene = glint::scene::import(mesh).unwrap();
+    let env = glint::env::load(map).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let bake = baker.bake_refined(None, &|_| {});
+    let refined = bake.scene(&scene).unwrap();
+    let (_, tangents, _) = glint::bake::decisions::decide_frames(&refined.mesh);
+    let mut camera = glint::scene::default_camera(&scene.bounds);
+    camera.aspect = w as f32 / h as f32;
+    let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
+    let mut m = one_sharp_lobe();
+    if diffuse {
+        m.rho_d = [0.8; 3];
+        m.coefficients.iter_mut().for_each(|c| c.fill(0.0));
+    }
+    let lobes = m.lobes().unwrap();
+    let c = &m.coefficients;
+    let table = glint::render::PhPyramid::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        glint::render::table::default_resolution(lobes.lambda()),
+    );
+    let shading = Shading {
+        rho_d: m.rho_d,
+        f0: m.f0,
+        specular: if diffuse {
+            Specular::None
+        } else {
+            Specular::Table(&table)
+        },
+    };
+    let prt = Prt::new(
+        &refined.mesh,
+        &bake.cuts,
+        &baker.tree,
+        tangents.as_deref(),
+        PrtSettings::default(),
+    );
+    let default = prt.render(&light, &camera, w, h, &shading);
+    let pixel_baker = Baker::new(
+        &refined,
+        &env,
+        tracing_settings(bake.settings, &bake.decisions),
+    )
+    .unwrap();
+    let (traced, stats) = render_traced(
+        &pixel_baker,
+        &refined.mesh,
+        &bake.cuts,
+        &bake.refinement.parents,
+        tangents.as_deref(),
+        &light,
+        &camera,
+        (w, h),
+        &shading,
+        PrtSettings::default(),
+    );
+    let (_, ref_tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
+    let tracer = glint::bake::Tracer::new(&scene.mesh);
+    let reference = |seed| {
+        render_reference(
+            &scene.mesh,
+            ref_tangents.as_deref(),
+            &tracer,
+            baker.ray_offset(),
+            &env,
+            0.0,
+            ExactMaterial {
+                lobes: &lobes,
+                coefficients: [&c[0], &c[1], &c[2]],
+                rho_d: m.rho_d,
+                f0: m.f0,
+            },
+            &camera,
+            w,
+            h,
+            spp,
+            seed,
+        )
+    };
+    let (mc, second) = (reference(1), reference(2));
+    assert_eq!(stats.pixels, mc.covered_count());
+    let all = vec![true; mc.pixels.len()];
+    let rmse = |a: &glint::render::Image| glint::accuracy::masked_rel_rmse(a, &mc, &all).0;
+    let noise = rmse(&second) / std::f64::consts::SQRT_2;
+    let less = |e: f64| (e * e - noise * noise).max(0.0).sqrt();
+    let measured = Measured {
+        decisions: bake.decisions.clone(),
+        stats,
+        default: less(rmse(&default)),
+        traced: less(rmse(&traced)),
+    };
+    println!(
+        "{} under {}, {}, {w}x{h}, {spp} spp: cells {}°, {} levels; {} pixels, {} traced ({} rays); \
+         vs MC less its noise ({:.2} %): default {:.2} %, traced {:.2} %",
+        mesh.display(),
+        map.display(),
+        if diffuse { "diffuse" } else { "one sharp lobe" },
+        measured.decisions.cell_deg,
+        measured.decisions.boundary_levels,
+        stats.pixels,
+        stats.traced,
+        stats.rays,
+        100.0 * noise,
+        100.0 * measured.default,
+        100.0 * measured.traced,
+    );
+    measured
+}
+
+/// The brushed sphere under interior_1k: its ground is two triangles, so with probes at vertices
+/// only (nearly all on the sphere) decision (d) left its 11.25° cells unrefined and the default
+/// frame was 4.8 % off (96×72, diffuse, less noise). With half the probes spread by area, the
+/// ground's shadow votes: the cells are refined at shadow edges and the default frame is within
+/// the accuracy goal; the traced frame too.
+#[test]
+fn area_probes_refine_the_cells_of_a_shadow_on_large_triangles() {
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let m = measure(
+        &samples.join("brushed_sphere.glb"),
+        &common::assets().join("hdr/interior_1k.exr"),
+        true,
+        (96, 72),
+        2048,
+    );
+    assert!(m.decisions.boundary_levels > 0, "{:?}", m.decisions);
+    assert!(
+        m.default <= 0.02,
+        "default frame {:.2} %",
+        100.0 * m.default
+    );
+    assert!(m.traced <= 0.02, "traced frame {:.2} %", 100.0 * m.traced);
+}
+
+/// The teapot under courtyard_1k, one sharp lobe, default view: its spout and lid shadow the body
+/// across triangles whose corners see them differently, and decision (d) leaves the bake's cells
+/// unrefined under the soft sky. The default frame blends the corners' cuts and is 8.8 % off;
+/// traced per pixel (cells refined at shadow edges) 2.6 % (128×96, 4096 spp, less noise) — not
+/// yet the 2 % goal, so the bound is 3 % — and only the pixels whose corners disagree are traced.
+#[test]
+fn traced_visibility_follows_shadows_across_triangles() {
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let m = measure(
+        &samples.join("teapot.glb"),
+        &samples.join("courtyard_1k.exr"),
+        false,
+        (128, 96),
+        4096,
+    );
+    assert!(
+        m.stats.traced > 0 && m.stats.traced < m.stats.pixels,
+        "only the pixels whose corners disagree are traced: {:?}",
+        m.stats
+    );
+    assert!(m.traced <= 0.03, "traced frame {:.2} %", 100.0 * m.traced);
+    assert!(
+        m.default >= 2.0 * m.traced,
+        "the corner blend is what tracing removes: default {:.2} %, traced {:.2} %",
+        100.0 * m.default,
+        100.0 * m.traced
+    );
+}
+
+/// A lone sphere: no ray can hit it (decision (a)), every cut is the whole hemisphere, every
+/// triangle's corners agree — the traced frame is the default frame (to the rounding of its points
+/// to f32), and casts no ray.
+#[test]
+fn traced_visibility_without_occlusion_is_the_default_frame() {
+    let scene = common::scene_from_mesh(common::uv_sphere(1.0, 24, 12, false));
+    let env = glint::env::EnvMap::from_fn(64, 32, |d| {
+        [(1.0 + d.y) as f32, 0.5, (1.0 - 0.5 * d.x) as f32]
+    })
+    .unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    assert!(!baker.decisions.trace_visibility);
+    let bake = baker.bake_all(None, &|_| {});
+    let camera = scene.cameras[0].clone();
+    let light = LightSums::new(&env, &baker.set, &baker.tree, 0.4);
+    let m = one_sharp_lobe();
+    let lobes = m.lobes().unwrap();
+    let c = &m.coefficients;
+    let table = glint::render::PhPyramid::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        glint::render::table::default_resolution(lobes.lambda()),
+    );
+    let shading = Shading {
+        rho_d: m.rho_d,
+        f0: m.f0,
+        specular: Specular::Table(&table),
+    };
+    let prt = Prt::new(
+        &scene.mesh,
+        &bake.cuts,
+        &baker.tree,
+        None,
+        PrtSettings::default(),
+    );
+    let default = prt.render(&light, &camera, 80, 60, &shading);
+    let (traced, stats) = render_traced(
+        &baker,
+        &scene.mesh,
+        &bake.cuts,
+        &[],
+        None,
+        &light,
+        &camera,
+        (80, 60),
+        &shading,
+        PrtSettings::default(),
+    );
+    assert!(stats.pixels > 500, "{stats:?}");
+    assert_eq!((stats.traced, stats.rays), (0, 0));
+    assert_eq!(traced.covered, default.covered);
+    // The same runs, light and BRDF: only the point's position and normal, stored as f32 in the
+    // point mesh, differ in rounding.
+    let worst = traced
+        .pixels
+        .iter()
+        .zip(&default.pixels)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(1e-3)))
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1e-4, "largest relative difference {worst}");
+}
