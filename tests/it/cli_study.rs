@@ -122,8 +122,8 @@ fn quick_study_writes_csv_svg_and_markdown() {
 /// `glint study --matrix --quick` (the CI subset): every case of the bunny and the brushed
 /// sphere under the studio map, three views, two rotations, the sharp, broad and anisotropic
 /// materials; the report's numbers are sane, the broad and anisotropic materials are within 2 % of
-/// the reference once its noise is taken out, and the sharp lobe within the bound it reaches today
-/// (see README).
+/// the reference once its noise is taken out, the sharp lobe within the bound it reaches today
+/// (see README), and the frame traced per pixel (`--trace-visibility`) no worse than the default.
 #[test]
 fn quick_accuracy_matrix() {
     let dir = common::temp_dir("matrix");
@@ -184,6 +184,20 @@ fn quick_accuracy_matrix() {
             r[4],
             100.0 * less_noise,
             100.0 * bound
+        );
+    }
+    // The traced frame (per-pixel visibility where a triangle's corners disagree) is the same
+    // renderer with better visibility: never more than half a point worse than the default frame,
+    // less the same reference's noise.
+    for r in &rows {
+        let noise = num(r, "reference_noise");
+        let less = |e: f64| (e * e - noise * noise).max(0.0).sqrt();
+        let (default, traced) = (less(num(r, "rel_rmse")), less(num(r, "traced_rel_rmse")));
+        assert!(
+            traced <= default + 0.005 && num(r, "traced_pixels") <= num(r, "object_pixels"),
+            "{r:?}: traced {:.2} % against {:.2} % less noise",
+            100.0 * traced,
+            100.0 * default
         );
     }
     assert!(
