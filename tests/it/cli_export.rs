@@ -344,6 +344,7 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
         ("prt.png", vec![]),
         ("prt.exr", vec!["--rotate", "45"]),
         ("mc.exr", vec!["--reference", "4"]),
+        ("traced.exr", vec!["--trace-visibility", "--rotate", "45"]),
     ];
     // The wgpu preview where an adapter exists (always in CI: lavapipe; tests/it/gpu.rs checks its
     // values).
@@ -370,6 +371,10 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
             "{name}: {}",
             String::from_utf8_lossy(&out.stderr)
         );
+        if name.starts_with("traced") {
+            let said = String::from_utf8_lossy(&out.stdout);
+            assert!(said.contains("visibility traced at"), "{said}");
+        }
         let bytes = std::fs::read(&out_path).unwrap();
         if name.ends_with(".png") {
             assert_eq!(&bytes[1..4], b"PNG");
@@ -402,6 +407,20 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
         dir.join("x.jpg").as_os_str()
     ]);
     assert_eq!(out.status.code(), Some(1));
+    // Traced visibility is for the PRT frame: with the reference it is a usage error.
+    let out = run_glint!([
+        "render".as_ref(),
+        bake.as_os_str(),
+        "--material".as_ref(),
+        material.as_os_str(),
+        "--reference".as_ref(),
+        "4".as_ref(),
+        "--trace-visibility".as_ref(),
+        "--out".as_ref(),
+        dir.join("y.exr").as_os_str()
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.join("y.exr").exists());
     std::fs::remove_dir_all(dir).unwrap();
 }
 
