@@ -628,7 +628,7 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
         rows.len()
     );
     out.push_str(&format!(
-        "The knob for the rest: `glint render --trace-visibility` (each pixel whose triangle's corners disagree traced on its own, with the bake's cells). With it {ok_traced} of {} cases are within both goals with the noise taken out; of the {} that are not at the defaults, {fixed} are. Cost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s traced ({:.1} M rays).\n\n",
+        "The knob for the rest: `glint render --trace-visibility` (each pixel whose triangle's corners disagree traced on its own, its cells refined at shadow edges). With it {ok_traced} of {} cases are within both goals with the noise taken out; of the {} that are not at the defaults, {fixed} are. Cost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s traced ({:.1} M rays).\n\n",
         rows.len(),
         failing.len(),
         secs(&|r| r.prt_secs),

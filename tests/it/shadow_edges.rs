@@ -4,7 +4,9 @@
 //! diffuse material so that only visibility is compared); where no blend of a triangle's corner
 //! cuts is the visibility inside it, the frame traced per pixel (`glint::render::traced`, `glint
 //! render --trace-visibility`) is (the teapot's spout and lid under the courtyard sky, one sharp
-//! lobe); and where nothing can occlude, the traced frame is the default frame and casts no ray.
+//! lobe); where one kind of probe sees an error no cell size reduces, the other kind still gets
+//! the cells it needs; and where nothing can occlude, the traced frame is the default frame and
+//! casts no ray.
 
 use crate::common;
 use crate::render_cases::one_sharp_lobe;
@@ -256,4 +258,34 @@ fn traced_visibility_without_occlusion_is_the_default_frame() {
         .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(1e-3)))
         .fold(0.0f32, f32::max);
     assert!(worst <= 1e-4, "largest relative difference {worst}");
+}
+
+/// Decision (d) where an error no candidate reduces sits at one kind of probe: on the accuracy
+/// matrix's patch of dragon_100k under interior_1k, occluders smaller than any cell put the area
+/// probes 7.5 % off for all three candidates, while the vertex probes need the refined cells
+/// (7.3 % → 0.7 %). Each kind picks for itself and the finer pick wins: the cells are refined. (Had
+/// the larger of the two errors decided, all three would tie and the cheapest, unrefined, win.)
+#[test]
+fn a_probe_group_that_no_candidate_helps_does_not_overrule_the_other() {
+    let mut scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
+    scene.mesh = glint::accuracy::patch(&scene.mesh, 0.3);
+    scene.bounds = glint::scene::Bounds::from_points(&scene.mesh.positions).unwrap();
+    let env = glint::env::load(&common::assets().join("hdr/interior_1k.exr")).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let d = &baker.decisions;
+    println!("{:?}: {}", d.cell_probe_errors, d.cell_reason);
+    let errors: Vec<f64> = d.cell_probe_errors.iter().map(|e| e.2).collect();
+    let (lo, hi) = errors.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &e| {
+        (lo.min(e), hi.max(e))
+    });
+    assert!(
+        lo > 0.02 && hi <= 1.2 * lo,
+        "the area probes' error is one no candidate reduces: {errors:?}"
+    );
+    assert_eq!(
+        (d.cell_deg, d.boundary_levels),
+        (11.25, 3),
+        "{}",
+        d.cell_reason
+    );
 }
