@@ -28,6 +28,17 @@ struct Measured {
     traced: f64,
 }
 
+/// The material's p(h) table at its default resolution, as frames use it.
+fn table_of(m: &glint::fit::material::Material) -> glint::render::PhPyramid {
+    let lobes = m.lobes().unwrap();
+    let c = &m.coefficients;
+    glint::render::PhPyramid::build(
+        &lobes,
+        [&c[0], &c[1], &c[2]],
+        glint::render::table::default_resolution(lobes.lambda()),
+    )
+}
+
 /// `diffuse`: ρd 0.8 and no lobe; else [`one_sharp_lobe`].
 fn measure(
     mesh: &std::path::Path,
@@ -52,11 +63,7 @@ fn measure(
     }
     let lobes = m.lobes().unwrap();
     let c = &m.coefficients;
-    let table = glint::render::PhPyramid::build(
-        &lobes,
-        [&c[0], &c[1], &c[2]],
-        glint::render::table::default_resolution(lobes.lambda()),
-    );
+    let table = table_of(&m);
     let shading = Shading {
         rho_d: m.rho_d,
         f0: m.f0,
@@ -214,13 +221,7 @@ fn traced_visibility_without_occlusion_is_the_default_frame() {
     let camera = scene.cameras[0].clone();
     let light = LightSums::new(&env, &baker.set, &baker.tree, 0.4);
     let m = one_sharp_lobe();
-    let lobes = m.lobes().unwrap();
-    let c = &m.coefficients;
-    let table = glint::render::PhPyramid::build(
-        &lobes,
-        [&c[0], &c[1], &c[2]],
-        glint::render::table::default_resolution(lobes.lambda()),
-    );
+    let table = table_of(&m);
     let shading = Shading {
         rho_d: m.rho_d,
         f0: m.f0,
