@@ -6,9 +6,9 @@
 //! Output: a linear [`Image`] (object pixels only; the caller fills the background) and what
 //! rendered it, in words. With `traced`, the PRT frame's visibility is traced per pixel where a
 //! triangle's corners disagree ([`super::traced`], `glint render --trace-visibility`), by a
-//! [`Baker`] made with the bake's own decisions. Invariants: the reference's shadow rays leave the surface at 1e-4 of the
-//! scene's diagonal (docs/conventions.md §6); an anisotropic material on a scene without tangents
-//! is an error.
+//! [`Baker`] made with the bake's own decisions. Invariants: the reference's shadow rays leave the
+//! surface at 1e-4 of the scene's diagonal (docs/conventions.md §6); an anisotropic material on a
+//! scene without tangents is an error.
 
 use super::{ExactMaterial, Image, Prt, PrtSettings, Shading, Specular, render_reference, table};
 use crate::bake::{BakeError, Baker, LoadedBake, Tracer};
