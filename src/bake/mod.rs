@@ -785,9 +785,6 @@ impl<'a> Baker<'a> {
         // normals describe, as the imported vertices' do, not on the flat facet below it (which
         // would see the neighbouring facets at grazing angles: the shadow-terminator problem).
         let mut blends: Vec<Vec<(u32, f64)>> = Vec::new();
-        let blend_of = |blends: &Vec<Vec<(u32, f64)>>, v: u32| -> Vec<(u32, f64)> {
-            refine::blend_of(blends, base_count, v)
-        };
         let mut parents_all: Vec<[u32; 2]> = Vec::new();
         let min_length = (r.min_edge * self.scene.bounds.diagonal() as f64) as f32;
         let mut rounds_done = 0;
@@ -830,7 +827,7 @@ impl<'a> Baker<'a> {
             let points: Vec<Option<(DVec3, DVec3)>> = (first_new..mesh.positions.len())
                 .map(|v| {
                     let flat = mesh.positions[v].as_dvec3();
-                    let blend = blend_of(&blends, v as u32);
+                    let blend = refine::blend_of(&blends, base_count, v as u32);
                     // An edge lies in one imported triangle, so a blend has at most three corners.
                     let p = if blend.len() <= 3 {
                         crate::scene::smooth_surface_point(&self.scene.mesh, &blend, flat)
