@@ -19,6 +19,7 @@ use crate::bake::{BakeSettings, Baker, Tracer};
 use crate::env::EnvMap;
 use crate::fit::material::{FitStats, Material};
 use crate::light::LightSums;
+use crate::render::traced::TRACED_BOUNDARY_LEVELS;
 use crate::render::{
     ExactMaterial, Image, PhPyramid, Prt, PrtSettings, Shading, Specular, render_reference,
     render_traced, table,
@@ -83,21 +84,30 @@ impl MatrixStudy {
                 r.material
             )
         });
+        let knobs: Vec<Knob> = self.rows.iter().map(MatrixRow::knob).collect();
+        let n = |f: &dyn Fn(Knob) -> bool| knobs.iter().filter(|&&k| f(k)).count();
         format!(
-            "{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}",
+            "{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}; with the reference's noise taken out, {} at the defaults, {} more with --trace-visibility, {} with --trace-levels {FINER_LEVELS}, {} within only against {FINER_SPP}x the reference's samples, {} with no knob tried",
             self.rows.len(),
-            worst.unwrap_or_default()
+            worst.unwrap_or_default(),
+            n(&|k| k == Knob::Defaults),
+            n(&|k| k == Knob::TraceVisibility),
+            n(&|k| k == Knob::TraceLevels),
+            n(&|k| matches!(k, Knob::FinerReference(_))),
+            n(&|k| k == Knob::None),
         )
     }
 }
 
 /// `glint study --matrix`: loads the meshes and maps (the bundled samples; dragon_100k and the
 /// interior map from `assets`; `quick`: the bunny and the brushed sphere under the studio map),
-/// runs the matrix and writes matrix.md and matrix.csv into `out`.
+/// runs the matrix and writes matrix.md and matrix.csv into `out`. `only`: words that narrow the
+/// meshes and the maps to those whose names contain one (a kind no word names is kept whole).
 pub fn run_study(
     samples: &std::path::Path,
     assets: &std::path::Path,
     quick: bool,
+    only: &[String],
     out: &std::path::Path,
     progress: &dyn Fn(usize, usize, &str),
 ) -> Result<MatrixStudy, StudyError> {
@@ -131,6 +141,25 @@ pub fn run_study(
         maps.push(("courtyard", need(samples.join("courtyard_1k.exr"))?));
         maps.push(("interior", need(assets.join("hdr/interior_1k.exr"))?));
     }
+    let named = |names: &[&str]| {
+        let words: Vec<&String> = only
+            .iter()
+            .filter(|w| names.iter().any(|n| n.contains(w.as_str())))
+            .collect();
+        move |name: &str| words.is_empty() || words.iter().any(|w| name.contains(w.as_str()))
+    };
+    let keep_mesh = named(&meshes.iter().map(|m| m.0).collect::<Vec<_>>());
+    let keep_map = named(&maps.iter().map(|m| m.0).collect::<Vec<_>>());
+    if let Some(w) = only.iter().find(|w| {
+        !meshes.iter().any(|m| m.0.contains(w.as_str()))
+            && !maps.iter().any(|m| m.0.contains(w.as_str()))
+    }) {
+        return Err(StudyError::Input(format!(
+            "--only {w}: no mesh or map of the matrix is named so"
+        )));
+    }
+    meshes.retain(|m| keep_mesh(m.0));
+    maps.retain(|m| keep_map(m.0));
     let mut scenes = Vec::new();
     for (name, path, fraction) in meshes {
         let mut scene = crate::scene::import(&path)?;
@@ -154,11 +183,16 @@ pub fn run_study(
     let start = Instant::now();
     let rows = run(&scenes, &envs, options, progress)?;
     let title = format!(
-        "glint accuracy matrix: PRT frame vs Monte Carlo reference, {}x{}, {} spp{} — {} cases, {:.0} s on {} threads",
+        "glint accuracy matrix: PRT frame vs Monte Carlo reference, {}x{}, {} spp{}{} — {} cases, {:.0} s on {} threads",
         options.size.0,
         options.size.1,
         options.spp,
         if quick { " (quick)" } else { "" },
+        if only.is_empty() {
+            String::new()
+        } else {
+            format!(" (only {})", only.join(", "))
+        },
         rows.len(),
         start.elapsed().as_secs_f64(),
         rayon::current_num_threads()
@@ -200,14 +234,19 @@ pub struct MatrixRow {
     pub silhouette_rel_rmse: f64,
     pub object_pixels: usize,
     pub silhouette_pixels: usize,
-    /// The reference's own noise: relative RMSE over object pixels between it and a second
-    /// reference with another seed, divided by √2.
+    /// The reference's own noise over object pixels: it is the mean of two seeds' images, whose
+    /// difference gives its noise (relative RMSE between them over 2).
     pub reference_noise: f64,
+    /// The same over silhouette pixels, where a grazing view makes the reference noisier.
+    pub silhouette_noise: f64,
     pub prt_secs: f64,
+    /// Seconds for the reference (both seeds).
     pub reference_secs: f64,
     /// The knob for visibility that changes inside triangles: the same frame with each pixel's
     /// own traced cut where its corners disagree ([`render_traced`]).
     pub traced: TracedCase,
+    /// Where the traced frame misses: what was tried next ([`Finer`]).
+    pub finer: Option<Finer>,
 }
 
 /// A case rendered with per-pixel traced visibility ([`render_traced`], `glint render
@@ -224,6 +263,80 @@ pub struct TracedCase {
     pub rays: u64,
 }
 
+/// The steps after `--trace-visibility` for a case it leaves outside the goals: the traced frame
+/// with its pixels' cells refined down to single directions at shadow edges (`--trace-levels`
+/// [`FINER_LEVELS`]), and where that misses too, every frame against a reference of
+/// [`FINER_SPP`] times the samples (a miss that goes away there was the reference's noise).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Finer {
+    pub levels: TracedCase,
+    pub reference: Option<FinerReference>,
+}
+
+/// The case's frames against a reference with [`FINER_SPP`] times the samples per seed.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct FinerReference {
+    pub spp: u32,
+    pub noise: f64,
+    pub silhouette_noise: f64,
+    /// (object, silhouette) relative RMSE of the default frame, the traced frame and the traced
+    /// frame at [`FINER_LEVELS`].
+    pub default: (f64, f64),
+    pub traced: (f64, f64),
+    pub levels: (f64, f64),
+    pub secs: f64,
+}
+
+/// `--trace-levels` of the matrix's second knob: 4 levels take the decided cells (at most 16
+/// directions a side) down to single directions at shadow edges.
+pub const FINER_LEVELS: u32 = 4;
+
+/// How many times the samples the finer reference takes.
+pub const FINER_SPP: u32 = 4;
+
+/// What brings a case within the goals, cheapest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Knob {
+    Defaults,
+    TraceVisibility,
+    TraceLevels,
+    /// Within only against the finer reference, with the frame named.
+    FinerReference(Frame),
+    /// Not within with any knob tried.
+    None,
+}
+
+/// One of a case's frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Frame {
+    Default,
+    Traced,
+    Levels,
+}
+
+impl Knob {
+    /// In words, with the command-line flags.
+    pub fn describe(self) -> String {
+        let frame = |f: Frame| match f {
+            Frame::Default => "defaults".to_string(),
+            Frame::Traced => "--trace-visibility".to_string(),
+            Frame::Levels => format!("--trace-visibility --trace-levels {FINER_LEVELS}"),
+        };
+        match self {
+            Knob::Defaults => frame(Frame::Default),
+            Knob::TraceVisibility => frame(Frame::Traced),
+            Knob::TraceLevels => frame(Frame::Levels),
+            Knob::FinerReference(f) => {
+                format!(
+                    "{} (within against {FINER_SPP}× the reference's samples)",
+                    frame(f)
+                )
+            }
+            Knob::None => "none tried".to_string(),
+        }
+    }
+}
+
 impl MatrixRow {
     /// The PRT's own error: the RMSE with the reference's noise taken out in quadrature.
     pub fn error_less_noise(&self) -> f64 {
@@ -233,6 +346,46 @@ impl MatrixRow {
     /// The traced frame's error with the reference's noise taken out.
     pub fn traced_error_less_noise(&self) -> f64 {
         less_noise(self.traced.rel_rmse, self.reference_noise)
+    }
+
+    /// Whether (object, silhouette) errors meet the goals with the noise taken out.
+    fn meets(&self, errors: (f64, f64), noise: (f64, f64)) -> bool {
+        less_noise(errors.0, noise.0) <= 0.02
+            && (self.silhouette_pixels == 0 || less_noise(errors.1, noise.1) <= 0.04)
+    }
+
+    /// The cheapest knob that brings the case within both goals with the reference's noise taken
+    /// out ([`Knob`]).
+    pub fn knob(&self) -> Knob {
+        let noise = (self.reference_noise, self.silhouette_noise);
+        if self.meets((self.rel_rmse, self.silhouette_rel_rmse), noise) {
+            return Knob::Defaults;
+        }
+        let traced = (self.traced.rel_rmse, self.traced.silhouette_rel_rmse);
+        if self.meets(traced, noise) {
+            return Knob::TraceVisibility;
+        }
+        let Some(finer) = &self.finer else {
+            return Knob::None;
+        };
+        if self.meets(
+            (finer.levels.rel_rmse, finer.levels.silhouette_rel_rmse),
+            noise,
+        ) {
+            return Knob::TraceLevels;
+        }
+        let Some(r) = &finer.reference else {
+            return Knob::None;
+        };
+        let noise = (r.noise, r.silhouette_noise);
+        [
+            (Frame::Default, r.default),
+            (Frame::Traced, r.traced),
+            (Frame::Levels, r.levels),
+        ]
+        .into_iter()
+        .find(|&(_, e)| self.meets(e, noise))
+        .map_or(Knob::None, |(f, _)| Knob::FinerReference(f))
     }
 }
 
@@ -435,12 +588,13 @@ pub fn run(
                 tangents.as_deref(),
                 PrtSettings::default(),
             );
-            // The knob `--trace-visibility`: pixels traced as `glint render` traces them.
-            let pixel_baker = Baker::new(
-                &refined,
-                env,
-                crate::render::traced::tracing_settings(bake.settings, &bake.decisions),
-            )?;
+            // The knob `--trace-visibility`: pixels traced as `glint render` traces them; and
+            // with `--trace-levels` FINER_LEVELS, for the cases that miss with it.
+            let tracing = |levels| {
+                crate::render::traced::tracing_settings(bake.settings, &bake.decisions, levels)
+            };
+            let pixel_baker = Baker::new(&refined, env, tracing(TRACED_BOUNDARY_LEVELS))?;
+            let finer_baker = Baker::new(&refined, env, tracing(FINER_LEVELS))?;
             progress(
                 i * maps.len() + j,
                 total,
@@ -473,72 +627,71 @@ pub fn run(
                         };
                         let img = prt.render(&light, &camera, w, h, &shading);
                         let prt_secs = t0.elapsed().as_secs_f64();
-                        let t0 = Instant::now();
-                        let (traced_img, traced_stats) = render_traced(
-                            &pixel_baker,
-                            &refined.mesh,
-                            &bake.cuts,
-                            &bake.refinement.parents,
-                            tangents.as_deref(),
-                            &light,
-                            &camera,
-                            (w, h),
-                            &shading,
-                            PrtSettings::default(),
-                        );
-                        let traced_secs = t0.elapsed().as_secs_f64();
-                        let t0 = Instant::now();
+                        let traced_frame = |baker: &Baker| {
+                            let t0 = Instant::now();
+                            let (img, stats) = render_traced(
+                                baker,
+                                &refined.mesh,
+                                &bake.cuts,
+                                &bake.refinement.parents,
+                                tangents.as_deref(),
+                                &light,
+                                &camera,
+                                (w, h),
+                                &shading,
+                                PrtSettings::default(),
+                            );
+                            (img, stats, t0.elapsed().as_secs_f64())
+                        };
+                        let (traced_img, traced_stats, traced_secs) = traced_frame(&pixel_baker);
                         let exact = ExactMaterial {
                             lobes: &lobes,
                             coefficients,
                             rho_d: m.rho_d,
                             f0: m.f0,
                         };
-                        let truth = render_reference(
-                            &scene.mesh,
-                            ref_tangents.as_deref(),
-                            &tracer,
-                            baker.ray_offset(),
-                            env,
-                            rotation,
-                            exact,
-                            &camera,
-                            w,
-                            h,
-                            options.spp,
-                            1,
-                        );
-                        let reference_secs = t0.elapsed().as_secs_f64();
-                        let second = render_reference(
-                            &scene.mesh,
-                            ref_tangents.as_deref(),
-                            &tracer,
-                            baker.ray_offset(),
-                            env,
-                            rotation,
-                            exact,
-                            &camera,
-                            w,
-                            h,
-                            options.spp,
-                            2,
-                        );
-                        let all = vec![true; truth.pixels.len()];
-                        let reference_noise =
-                            masked_rel_rmse(&second, &truth, &all).0 / std::f64::consts::SQRT_2;
-                        let (rel_rmse, object_pixels) = masked_rel_rmse(&img, &truth, &all);
-                        let silhouette = silhouette_mask(&truth);
+                        let reference = |spp: u32| {
+                            let t0 = Instant::now();
+                            let seeds = [1, 2].map(|seed| {
+                                render_reference(
+                                    &scene.mesh,
+                                    ref_tangents.as_deref(),
+                                    &tracer,
+                                    baker.ray_offset(),
+                                    env,
+                                    rotation,
+                                    exact,
+                                    &camera,
+                                    w,
+                                    h,
+                                    spp,
+                                    seed,
+                                )
+                            });
+                            Reference::of_seeds(seeds, t0.elapsed().as_secs_f64())
+                        };
+                        let truth = reference(options.spp);
+                        let all = vec![true; truth.image.pixels.len()];
+                        let silhouette = silhouette_mask(&truth.image);
+                        let errors = |img: &Image, truth: &Reference| {
+                            (
+                                masked_rel_rmse(img, &truth.image, &all).0,
+                                masked_rel_rmse(img, &truth.image, &silhouette).0,
+                            )
+                        };
+                        let (rel_rmse, object_pixels) = masked_rel_rmse(&img, &truth.image, &all);
                         let (silhouette_rel_rmse, silhouette_pixels) =
-                            masked_rel_rmse(&img, &truth, &silhouette);
+                            masked_rel_rmse(&img, &truth.image, &silhouette);
+                        let (noise, silhouette_noise) = truth.noise(&all, &silhouette);
+                        let traced_errors = errors(&traced_img, &truth);
                         let traced = TracedCase {
-                            rel_rmse: masked_rel_rmse(&traced_img, &truth, &all).0,
-                            silhouette_rel_rmse: masked_rel_rmse(&traced_img, &truth, &silhouette)
-                                .0,
+                            rel_rmse: traced_errors.0,
+                            silhouette_rel_rmse: traced_errors.1,
                             secs: traced_secs,
                             traced_pixels: traced_stats.traced,
                             rays: traced_stats.rays,
                         };
-                        rows.push(MatrixRow {
+                        let mut row = MatrixRow {
                             mesh: mesh_name.clone(),
                             map: map_name.clone(),
                             view: view_name.clone(),
@@ -548,11 +701,47 @@ pub fn run(
                             silhouette_rel_rmse,
                             object_pixels,
                             silhouette_pixels,
-                            reference_noise,
+                            reference_noise: noise,
+                            silhouette_noise,
                             prt_secs,
-                            reference_secs,
+                            reference_secs: truth.secs,
                             traced,
-                        });
+                            finer: None,
+                        };
+                        // The next knobs, only where the traced frame misses.
+                        if row.knob() == Knob::None {
+                            let (levels_img, stats, secs) = traced_frame(&finer_baker);
+                            let e = errors(&levels_img, &truth);
+                            let levels = TracedCase {
+                                rel_rmse: e.0,
+                                silhouette_rel_rmse: e.1,
+                                secs,
+                                traced_pixels: stats.traced,
+                                rays: stats.rays,
+                            };
+                            row.finer = Some(Finer {
+                                levels,
+                                reference: None,
+                            });
+                            if row.knob() == Knob::None {
+                                let spp = options.spp * FINER_SPP;
+                                let fine = reference(spp);
+                                let (noise, silhouette_noise) = fine.noise(&all, &silhouette);
+                                row.finer = Some(Finer {
+                                    levels,
+                                    reference: Some(FinerReference {
+                                        spp,
+                                        noise,
+                                        silhouette_noise,
+                                        default: errors(&img, &fine),
+                                        traced: errors(&traced_img, &fine),
+                                        levels: errors(&levels_img, &fine),
+                                        secs: fine.secs,
+                                    }),
+                                });
+                            }
+                        }
+                        rows.push(row);
                     }
                 }
             }
@@ -562,14 +751,45 @@ pub fn run(
     Ok(rows)
 }
 
-/// The matrix as CSV (one row per case).
+/// A case's Monte Carlo reference: the mean of two seeds' images, which also give its noise.
+struct Reference {
+    image: Image,
+    seeds: [Image; 2],
+    secs: f64,
+}
+
+impl Reference {
+    fn of_seeds(seeds: [Image; 2], secs: f64) -> Self {
+        let mut image = seeds[0].clone();
+        for ((p, q), c) in image
+            .pixels
+            .iter_mut()
+            .zip(&seeds[1].pixels)
+            .zip(&seeds[1].covered)
+        {
+            if *c {
+                *p = std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
+            }
+        }
+        Self { image, seeds, secs }
+    }
+
+    /// The mean's noise over the two masks: half the seeds' relative RMS difference (each seed's
+    /// noise is that difference over √2, the mean's a further √2 less).
+    fn noise(&self, all: &[bool], silhouette: &[bool]) -> (f64, f64) {
+        let half = |mask: &[bool]| 0.5 * masked_rel_rmse(&self.seeds[0], &self.seeds[1], mask).0;
+        (half(all), half(silhouette))
+    }
+}
+
+/// The matrix as CSV (one row per case; the finer knobs' columns empty where not tried).
 pub fn csv(rows: &[MatrixRow]) -> String {
     let mut out = String::from(
-        "mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,prt_secs,reference_secs,traced_rel_rmse,traced_silhouette_rel_rmse,traced_secs,traced_pixels,traced_rays\n",
+        "mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,silhouette_noise,prt_secs,reference_secs,traced_rel_rmse,traced_silhouette_rel_rmse,traced_secs,traced_pixels,traced_rays,levels_rel_rmse,levels_silhouette_rel_rmse,levels_secs,levels_rays,finer_spp,finer_noise,finer_silhouette_noise,finer_default_rel_rmse,finer_default_silhouette_rel_rmse,finer_traced_rel_rmse,finer_traced_silhouette_rel_rmse,finer_levels_rel_rmse,finer_levels_silhouette_rel_rmse,finer_secs,knob\n",
     );
     for r in rows {
         out.push_str(&format!(
-            "{},{},{},{},{},{:.5},{:.5},{},{},{:.5},{:.4},{:.3},{:.5},{:.5},{:.4},{},{}\n",
+            "{},{},{},{},{},{:.5},{:.5},{},{},{:.5},{:.5},{:.4},{:.3},{:.5},{:.5},{:.4},{},{}",
             r.mesh,
             r.map,
             r.view,
@@ -580,6 +800,7 @@ pub fn csv(rows: &[MatrixRow]) -> String {
             r.object_pixels,
             r.silhouette_pixels,
             r.reference_noise,
+            r.silhouette_noise,
             r.prt_secs,
             r.reference_secs,
             r.traced.rel_rmse,
@@ -588,60 +809,88 @@ pub fn csv(rows: &[MatrixRow]) -> String {
             r.traced.traced_pixels,
             r.traced.rays
         ));
+        match &r.finer {
+            Some(f) => out.push_str(&format!(
+                ",{:.5},{:.5},{:.4},{}",
+                f.levels.rel_rmse, f.levels.silhouette_rel_rmse, f.levels.secs, f.levels.rays
+            )),
+            None => out.push_str(",,,,"),
+        }
+        match r.finer.as_ref().and_then(|f| f.reference.as_ref()) {
+            Some(x) => out.push_str(&format!(
+                ",{},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.3}",
+                x.spp,
+                x.noise,
+                x.silhouette_noise,
+                x.default.0,
+                x.default.1,
+                x.traced.0,
+                x.traced.1,
+                x.levels.0,
+                x.levels.1,
+                x.secs
+            )),
+            None => out.push_str(",,,,,,,,,,"),
+        }
+        let knob = match r.knob() {
+            Knob::Defaults => "defaults".to_string(),
+            Knob::TraceVisibility => "traced".to_string(),
+            Knob::TraceLevels => "levels".to_string(),
+            Knob::FinerReference(f) => format!("finer-reference-{f:?}").to_lowercase(),
+            Knob::None => "none".to_string(),
+        };
+        out.push_str(&format!(",{knob}\n"));
     }
     out
 }
 
-/// The goals with the reference's noise taken out: 2 % over object pixels and 4 % over silhouette
-/// pixels, for the default frame and for the traced one.
-fn within_less_noise(r: &MatrixRow, traced: bool) -> bool {
-    let (object, silhouette) = if traced {
-        (r.traced_error_less_noise(), r.traced.silhouette_rel_rmse)
-    } else {
-        (r.error_less_noise(), r.silhouette_rel_rmse)
-    };
-    object <= 0.02
-        && (r.silhouette_pixels == 0 || less_noise(silhouette, r.reference_noise) <= 0.04)
-}
-
 /// The matrix as Markdown: a summary against the goals (2 % over object pixels, 4 % over silhouette
-/// pixels), as measured and with the reference's noise taken out, for the default frame and with
-/// the knob that traces visibility per pixel; then every case, worst first.
+/// pixels), as measured and with the reference's noise taken out, and the cheapest knob that brings
+/// each case within; then every case, worst first; then the cases past `--trace-visibility`.
 pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
     let within = |r: &MatrixRow| {
         r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)
     };
     let ok = rows.iter().filter(|r| within(r)).count();
-    let ok_less_noise = rows.iter().filter(|r| within_less_noise(r, false)).count();
-    let failing: Vec<&MatrixRow> = rows
-        .iter()
-        .filter(|r| !within_less_noise(r, false))
-        .collect();
-    let fixed = failing
-        .iter()
-        .filter(|r| within_less_noise(r, true))
-        .count();
-    let ok_traced = rows.iter().filter(|r| within_less_noise(r, true)).count();
+    let count = |k: &dyn Fn(Knob) -> bool| rows.iter().filter(|r| k(r.knob())).count();
     let secs = |f: &dyn Fn(&MatrixRow) -> f64| -> f64 { rows.iter().map(f).sum() };
     let mut out = format!(
-        "# {title}\n\n{ok} of {} cases within 2 % over object pixels and 4 % over silhouette pixels as measured; {ok_less_noise} with the reference's noise taken out.\n\n",
+        "# {title}\n\n{ok} of {} cases within 2 % over object pixels and 4 % over silhouette pixels as measured. The reference is the mean of two seeds, whose difference gives its noise, over object pixels and over silhouette pixels apart; with that noise taken out in quadrature, the cheapest knob that brings each case within both goals:\n\n",
         rows.len()
     );
+    out.push_str("| knob | cases |\n|---|---|\n");
+    let order = [
+        Knob::Defaults,
+        Knob::TraceVisibility,
+        Knob::TraceLevels,
+        Knob::FinerReference(Frame::Default),
+        Knob::FinerReference(Frame::Traced),
+        Knob::FinerReference(Frame::Levels),
+        Knob::None,
+    ];
+    for k in order {
+        let n = count(&|x| x == k);
+        if n > 0 {
+            out.push_str(&format!("| {} | {n} |\n", k.describe()));
+        }
+    }
     out.push_str(&format!(
-        "The knob for the rest: `glint render --trace-visibility` (each pixel whose triangle's corners disagree traced on its own, its cells refined at shadow edges). With it {ok_traced} of {} cases are within both goals with the noise taken out; of the {} that are not at the defaults, {fixed} are. Cost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s traced ({:.1} M rays).\n\n",
-        rows.len(),
-        failing.len(),
+        "\nCost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s with `--trace-visibility` ({:.1} M rays); `--trace-levels {FINER_LEVELS}` was rendered for {} cases ({:.1} s) and the reference at {FINER_SPP}× the samples for {} ({:.1} s).\n\n",
         secs(&|r| r.prt_secs),
         secs(&|r| r.traced.secs),
         rows.iter().map(|r| r.traced.rays).sum::<u64>() as f64 / 1e6,
+        rows.iter().filter(|r| r.finer.is_some()).count(),
+        secs(&|r| r.finer.map_or(0.0, |f| f.levels.secs)),
+        rows.iter().filter(|r| r.finer.is_some_and(|f| f.reference.is_some())).count(),
+        secs(&|r| r.finer.and_then(|f| f.reference).map_or(0.0, |x| x.secs)),
     ));
     let mut worst: Vec<&MatrixRow> = rows.iter().collect();
     worst.sort_by(|a, b| b.rel_rmse.total_cmp(&a.rel_rmse));
-    out.push_str("Relative RMSE of the PRT frame against the reference over object pixels and over silhouette pixels (count in brackets); the reference's own noise beside it, and the PRT's error with that noise taken out (√(RMSE² − noise²)); then the same frame with visibility traced per pixel (`--trace-visibility`): its error less noise over object and silhouette pixels, and its time.\n\n");
-    out.push_str("| mesh | map | view | rotation | material | object pixels | silhouette pixels | reference noise | PRT error less noise | PRT s | reference s | traced: less noise | traced: silhouette less noise | traced s |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("Relative RMSE of the PRT frame against the reference over object pixels and over silhouette pixels (count in brackets); the reference's own noise over each, and the PRT's error with that noise taken out (√(RMSE² − noise²)); then the same frame with visibility traced per pixel (`--trace-visibility`): its error less noise over object and silhouette pixels, and its time; and the cheapest knob that brings the case within.\n\n");
+    out.push_str("| mesh | map | view | rotation | material | object pixels | silhouette pixels | reference noise (silhouette) | PRT error less noise (silhouette) | PRT s | reference s | traced: less noise | traced: silhouette less noise | traced s | knob |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in worst {
         out.push_str(&format!(
-            "| {} | {} | {} | {}° | {} | {:.2} % ({}) | {:.2} % ({}) | {:.2} % | {:.2} % | {:.3} | {:.2} | {:.2} % | {:.2} % | {:.3} |\n",
+            "| {} | {} | {} | {}° | {} | {:.2} % ({}) | {:.2} % ({}) | {:.2} % ({:.2} %) | {:.2} % ({:.2} %) | {:.3} | {:.2} | {:.2} % | {:.2} % | {:.3} | {} |\n",
             r.mesh,
             r.map,
             r.view,
@@ -652,13 +901,63 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
             100.0 * r.silhouette_rel_rmse,
             r.silhouette_pixels,
             100.0 * r.reference_noise,
+            100.0 * r.silhouette_noise,
             100.0 * r.error_less_noise(),
+            100.0 * less_noise(r.silhouette_rel_rmse, r.silhouette_noise),
             r.prt_secs,
             r.reference_secs,
             100.0 * r.traced_error_less_noise(),
-            100.0 * less_noise(r.traced.silhouette_rel_rmse, r.reference_noise),
-            r.traced.secs
+            100.0 * less_noise(r.traced.silhouette_rel_rmse, r.silhouette_noise),
+            r.traced.secs,
+            r.knob().describe()
         ));
+    }
+    let past: Vec<&MatrixRow> = rows.iter().filter(|r| r.finer.is_some()).collect();
+    if !past.is_empty() {
+        out.push_str(&format!("\n## Past `--trace-visibility`\n\nThe cases the traced frame leaves outside the goals: the traced frame at `--trace-levels {FINER_LEVELS}` (errors less noise, object / silhouette, and its time), and where that misses too, the default, traced and `--trace-levels {FINER_LEVELS}` frames against the reference at {FINER_SPP}× the samples (its noise, then each frame's errors less that noise).\n\n"));
+        out.push_str("| mesh | map | view | rotation | material | levels: less noise | levels s | finer reference: noise (silhouette) | default | traced | levels | knob |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        for r in past {
+            let Some(f) = r.finer else { continue };
+            let pair = |e: (f64, f64), n: (f64, f64)| {
+                format!(
+                    "{:.2} % / {:.2} %",
+                    100.0 * less_noise(e.0, n.0),
+                    100.0 * less_noise(e.1, n.1)
+                )
+            };
+            let noise = (r.reference_noise, r.silhouette_noise);
+            let (fine_noise, d, t, l) = match f.reference {
+                Some(x) => {
+                    let n = (x.noise, x.silhouette_noise);
+                    (
+                        format!(
+                            "{:.2} % ({:.2} %)",
+                            100.0 * x.noise,
+                            100.0 * x.silhouette_noise
+                        ),
+                        pair(x.default, n),
+                        pair(x.traced, n),
+                        pair(x.levels, n),
+                    )
+                }
+                None => Default::default(),
+            };
+            out.push_str(&format!(
+                "| {} | {} | {} | {}° | {} | {} | {:.3} | {} | {} | {} | {} | {} |\n",
+                r.mesh,
+                r.map,
+                r.view,
+                r.rotation_deg,
+                r.material,
+                pair((f.levels.rel_rmse, f.levels.silhouette_rel_rmse), noise),
+                f.levels.secs,
+                fine_noise,
+                d,
+                t,
+                l,
+                r.knob().describe()
+            ));
+        }
     }
     out
 }

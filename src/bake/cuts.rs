@@ -129,6 +129,10 @@ pub struct CutScratch {
     batch: Vec<(u32, u32)>,
     /// Cells marked at one level with the light they gate ([`mark_boundaries`]), kept likewise.
     gated: Vec<(f64, usize)>,
+    /// Per tree node, its cosine mass for the current vertex ([`node_weight`]), computed once and
+    /// kept for the passes that boundary refinement and the cut cap make (stamped as `stamp`).
+    weight: Vec<f64>,
+    weight_stamp: Vec<u32>,
     generation: u32,
 }
 
@@ -144,6 +148,8 @@ impl CutScratch {
             traced: Vec::new(),
             batch: Vec::new(),
             gated: Vec::new(),
+            weight: Vec::new(),
+            weight_stamp: Vec::new(),
             generation: 0,
         }
     }
@@ -153,6 +159,7 @@ impl CutScratch {
         if self.generation == 0 {
             self.stamp.iter_mut().for_each(|s| *s = 0);
             self.refine.iter_mut().for_each(|s| *s = 0);
+            self.weight_stamp.iter_mut().for_each(|s| *s = 0);
             self.generation = 1;
         }
         self.traced.clear();
@@ -426,6 +433,10 @@ pub fn vertex_cut(
     gate: Option<LightGate>,
 ) -> VertexCut {
     scratch.next_vertex();
+    if scratch.weight_stamp.len() < tree.nodes().len() {
+        scratch.weight.resize(tree.nodes().len(), 0.0);
+        scratch.weight_stamp.resize(tree.nodes().len(), 0);
+    }
     for (w, &[known, visible]) in prior.agreed.iter().enumerate() {
         let mut rest = known;
         while rest != 0 {
@@ -528,13 +539,19 @@ fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
 }
 
 /// Σ_i Ω_i c_i over node `k`: its moment's projection when it lies wholly above the horizon, else
-/// its leaves' ([`cosine_mass`]).
-fn node_weight(ctx: &Ctx, k: usize, wholly_above: bool) -> f64 {
+/// its leaves' ([`cosine_mass`]); once per node and vertex (the later passes read it back).
+fn node_weight(ctx: &mut Ctx, k: usize, wholly_above: bool) -> f64 {
     if wholly_above {
-        ctx.tree.nodes()[k].moment.dot(ctx.n)
-    } else {
-        cosine_mass(ctx.tree, k, ctx.n)
+        return ctx.tree.nodes()[k].moment.dot(ctx.n);
     }
+    let s = &mut *ctx.scratch;
+    if s.weight_stamp[k] == s.generation {
+        return s.weight[k];
+    }
+    let w = cosine_mass(ctx.tree, k, ctx.n);
+    s.weight[k] = w;
+    s.weight_stamp[k] = s.generation;
+    w
 }
 
 /// The cell size below `node` in a traced subtree: a quarter of `cell` where the node is a cell
@@ -671,13 +688,13 @@ fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
 }
 
 /// The cells [`trace_cells`] traces, in leaf order: (node, cell size).
-fn collect_cells(ctx: &Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>) {
-    let node = &ctx.tree.nodes()[k];
+fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>) {
+    let node = ctx.tree.nodes()[k];
     let (max_cos, wholly_above) = node.horizon(ctx.n);
     if max_cos <= 0.0 {
         return;
     }
-    let cell = cell_size(ctx, node, cell);
+    let cell = cell_size(ctx, &node, cell);
     if node.is_leaf() || node.count as usize <= cell {
         let w = node_weight(ctx, k, wholly_above);
         if w > 0.0 && ctx.scratch.stamp[ctx.key(node.first, cell)] != ctx.scratch.generation {

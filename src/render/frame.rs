@@ -45,14 +45,15 @@ pub fn material_lobes(bake: &LoadedBake, material: &Material) -> Result<LobeSet,
 }
 
 /// The CPU PRT frame (default settings, p tabulated at its default resolution); `traced`: with
-/// per-pixel traced visibility.
+/// per-pixel traced visibility, its cells refined at shadow edges at least this many times
+/// ([`super::traced::tracing_settings`]).
 pub fn prt_frame(
     bake: &LoadedBake,
     material: &Material,
     camera: &Camera,
     (w, h): (u32, u32),
     rotation_rad: f64,
-    traced: bool,
+    traced: Option<u32>,
 ) -> Result<(Image, String), FrameError> {
     let lobes = material_lobes(bake, material)?;
     let c = &material.coefficients;
@@ -78,7 +79,7 @@ pub fn prt_frame_standard(
     camera: &Camera,
     size: (u32, u32),
     rotation_rad: f64,
-    traced: bool,
+    traced: Option<u32>,
 ) -> Result<(Image, String), FrameError> {
     let shading = Shading {
         rho_d: material.back_facing_rho(),
@@ -104,10 +105,10 @@ fn prt_render(
     (w, h): (u32, u32),
     rotation_rad: f64,
     shading: &Shading,
-    traced: bool,
+    traced: Option<u32>,
 ) -> Result<(Image, String), FrameError> {
-    if traced {
-        let baker = bake_tracer(bake)?;
+    if let Some(levels) = traced {
+        let baker = bake_tracer(bake, levels)?;
         let light = LightSums::new(&bake.env, &baker.set, &baker.tree, rotation_rad);
         let (img, stats) = super::render_traced(
             &baker,
@@ -142,9 +143,11 @@ fn prt_render(
 }
 
 /// A [`Baker`] over the bake's mesh that traces a frame's pixels as
-/// [`super::traced::tracing_settings`] says; no decision is made again.
-pub fn bake_tracer(bake: &LoadedBake) -> Result<Baker<'_>, FrameError> {
-    let settings = super::traced::tracing_settings(bake.header.settings, &bake.header.decisions);
+/// [`super::traced::tracing_settings`] says (with at least `levels` boundary levels); no decision
+/// is made again.
+pub fn bake_tracer(bake: &LoadedBake, levels: u32) -> Result<Baker<'_>, FrameError> {
+    let settings =
+        super::traced::tracing_settings(bake.header.settings, &bake.header.decisions, levels);
     Ok(Baker::new(&bake.scene, &bake.env, settings)?)
 }
 

@@ -45,12 +45,13 @@ pub const TRACED_BOUNDARY_LEVELS: u32 = 3;
 
 /// The settings a [`Baker`] traces a frame's pixels with, from a bake's settings and decisions:
 /// its direction set, cell size and light budget, cells at shadow edges traced again at least
-/// [`TRACED_BOUNDARY_LEVELS`] times, and no vertex sampling (each pixel is traced on its own).
-pub fn tracing_settings(bake: BakeSettings, decisions: &Decisions) -> BakeSettings {
+/// `levels` times ([`TRACED_BOUNDARY_LEVELS`] by default; `glint render --trace-levels`), and no
+/// vertex sampling (each pixel is traced on its own).
+pub fn tracing_settings(bake: BakeSettings, decisions: &Decisions, levels: u32) -> BakeSettings {
     let mut settings = bake;
     settings.resolution = Some(decisions.resolution);
     settings.cell_deg = Some(decisions.cell_deg);
-    settings.boundary_levels = Some(decisions.boundary_levels.max(TRACED_BOUNDARY_LEVELS));
+    settings.boundary_levels = Some(decisions.boundary_levels.max(levels));
     settings.force_trace = decisions.trace_visibility;
     settings.refine.interpolate = false;
     settings

@@ -200,6 +200,44 @@ fn quick_accuracy_matrix() {
             100.0 * default
         );
     }
+    // Each case names the cheapest knob that brings it within (2 % over object pixels, 4 % over
+    // silhouette pixels, each less the reference's noise over those pixels): recomputed here from
+    // the columns for the first two rungs; the finer knobs are tried only where the traced frame
+    // misses.
+    let knobs = [
+        "defaults",
+        "traced",
+        "levels",
+        "finer-reference-default",
+        "finer-reference-traced",
+        "finer-reference-levels",
+        "none",
+    ];
+    for r in &rows {
+        let knob = r[col("knob")];
+        assert!(knobs.contains(&knob), "{r:?}");
+        let (noise, sil_noise) = (num(r, "reference_noise"), num(r, "silhouette_noise"));
+        assert!(sil_noise > 0.0 && sil_noise < 0.12, "{r:?}");
+        let less = |e: f64, n: f64| (e * e - n * n).max(0.0).sqrt();
+        let meets =
+            |e: &str, s: &str| less(num(r, e), noise) <= 0.02 && less(num(r, s), sil_noise) <= 0.04;
+        let expected = if meets("rel_rmse", "silhouette_rel_rmse") {
+            Some("defaults")
+        } else if meets("traced_rel_rmse", "traced_silhouette_rel_rmse") {
+            Some("traced")
+        } else {
+            None
+        };
+        match expected {
+            Some(k) => assert_eq!(knob, k, "{r:?}"),
+            None => {
+                assert!(!["defaults", "traced"].contains(&knob), "{r:?}");
+                assert!(num(r, "levels_rays") > 0.0, "{r:?}");
+            }
+        }
+        let tried = !r[col("levels_rel_rmse")].is_empty();
+        assert_eq!(tried, expected.is_none(), "{r:?}");
+    }
     assert!(
         rows.iter().any(|r| r[col("material")] == "anisotropic"),
         "the brushed sphere carries tangents"

@@ -70,6 +70,11 @@ pub struct RenderArgs {
     /// edges inside triangles), with the bake's visibility cells; slower, a still's accuracy.
     #[arg(long, conflicts_with_all = ["gpu", "reference"])]
     pub trace_visibility: bool,
+    /// With --trace-visibility: refine the pixels' visibility cells at shadow edges at least this
+    /// many times (each level halves a cell's width; 4 reaches single directions at every size
+    /// the bake decides).
+    #[arg(long, requires = "trace_visibility", default_value_t = glint::render::traced::TRACED_BOUNDARY_LEVELS)]
+    pub trace_levels: u32,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
@@ -300,6 +305,10 @@ pub struct StudyArgs {
     /// Where the matrix finds dragon_100k.glb (glb/) and interior_1k.exr (hdr/).
     #[arg(long, default_value = "../shared/assets")]
     pub assets: PathBuf,
+    /// With --matrix: only the meshes and maps whose names contain one of these words (e.g.
+    /// `--only teapot --only interior`); meshes or maps that no word names are all kept.
+    #[arg(long, requires = "matrix")]
+    pub only: Vec<String>,
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,

@@ -258,12 +258,13 @@ fn render(args: &RenderArgs) -> Result<()> {
         .then(|| read_fallback(&args.material))
         .transpose()?;
     let (c, size, r) = (&camera, (w, h), rotation);
+    let traced = args.trace_visibility.then_some(args.trace_levels);
     let (mut image, what) = match (args.reference, &fallback) {
         (Some(n), Some(f)) => frame::reference_frame_standard(&bake, f, c, size, r, n)?,
-        (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r, args.trace_visibility)?,
+        (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r, traced)?,
         (Some(spp), None) => frame::reference_frame(&bake, &material, c, size, r, spp)?,
         (None, None) if args.gpu => glint::gpu::preview_frame(&bake, &material, c, size, r)?,
-        (None, None) => frame::prt_frame(&bake, &material, c, size, r, args.trace_visibility)?,
+        (None, None) => frame::prt_frame(&bake, &material, c, size, r, traced)?,
     };
     let seconds = start.elapsed().as_secs_f64();
     image.fill_background(&bake.env, rotation, &camera);
@@ -323,6 +324,7 @@ fn study(args: &StudyArgs) -> Result<()> {
             &samples_dir(),
             &args.assets,
             args.quick,
+            &args.only,
             &args.out,
             &progress,
         )?;
