@@ -345,6 +345,10 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
         ("prt.exr", vec!["--rotate", "45"]),
         ("mc.exr", vec!["--reference", "4"]),
         ("traced.exr", vec!["--trace-visibility", "--rotate", "45"]),
+        (
+            "traced4.exr",
+            vec!["--trace-visibility", "--trace-levels", "4"],
+        ),
     ];
     // The wgpu preview where an adapter exists (always in CI: lavapipe; tests/it/gpu.rs checks its
     // values).
@@ -421,6 +425,19 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(!dir.join("y.exr").exists());
+    // --trace-levels refines the traced frame's cells: without --trace-visibility, a usage error.
+    let out = run_glint!([
+        "render".as_ref(),
+        bake.as_os_str(),
+        "--material".as_ref(),
+        material.as_os_str(),
+        "--trace-levels".as_ref(),
+        "4".as_ref(),
+        "--out".as_ref(),
+        dir.join("z.exr").as_os_str()
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!dir.join("z.exr").exists());
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -1,7 +1,9 @@
 //! `glint study --quick` end to end: the report files, their columns, and numbers that
 //! must behave — the Monte Carlo reference's own error falls as its sample count grows (its noise
 //! is an independent check that the truth and the comparison work), every error is a finite
-//! fraction, and the Pareto front (time, error, fit residual) is non-empty and undominated.
+//! fraction, and the Pareto front (time, error, fit residual) is non-empty and undominated; the
+//! accuracy matrix's quick subset, each case with its knob; `--only` refusing a word that names
+//! nothing.
 
 use crate::common;
 
@@ -242,5 +244,31 @@ fn quick_accuracy_matrix() {
         rows.iter().any(|r| r[col("material")] == "anisotropic"),
         "the brushed sphere carries tangents"
     );
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// `--only` narrows the matrix by name; a word that names no mesh or map is refused before
+/// anything is rendered or written.
+#[test]
+fn matrix_only_refuses_a_word_that_names_nothing() {
+    let dir = common::temp_dir("matrix-only");
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = crate::glint_command!()
+        .current_dir(root)
+        .args([
+            "study",
+            "--matrix",
+            "--quick",
+            "--only",
+            "armadillo",
+            "--out",
+        ])
+        .arg(dir.join("m"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("--only armadillo"), "{stderr}");
+    assert!(!dir.join("m").exists());
     std::fs::remove_dir_all(dir).unwrap();
 }
