@@ -13,7 +13,8 @@
 //! Algorithm (top-down, then merged bottom-up):
 //! 1. A node wholly below the horizon is dropped (Ṽ = 0, no rays).
 //! 2. A node whose cone of directions is free ([`Tracer::cone_free`]) is visible, V = 1, exactly,
-//!    with no rays: this settles open sky wholesale.
+//!    with no rays: this settles open sky wholesale. Tested above the nodes of rule 4, and inside
+//!    them on nodes of more than [`CutSettings::cone_leaves`] leaves where that is set.
 //! 3. A node so near the horizon that ½·Σ Ω_i c_i ≤ ε·Ω_k is accepted with V = ½ and no rays:
 //!    whatever its true visibility, the mean |Ṽ| error over it is within ε.
 //! 4. Otherwise a node with at most `trace_leaves` leaves has every above-horizon leaf traced;
@@ -77,6 +78,15 @@ pub struct CutSettings {
     /// decision (d).
     #[serde(default)]
     pub boundary_levels: u32,
+    /// Inside the nodes traced cell by cell (`trace_leaves`), nodes of more than this many leaves
+    /// are still cone-tested ([`Tracer::cone_free`]), and a free one is visible without rays; the
+    /// cells of the others are traced in packets per node of at most this many leaves (0: off,
+    /// the whole node's cells in one batch). The cut is the same either way (a free cone holds
+    /// no geometry, so each of its cells' rays would find V = 1): it pays where cells are single
+    /// directions, as in decision (d)'s reference, a ray per direction (the bunny under
+    /// interior_1k, 128 directions a side: see docs/benchmarks.md).
+    #[serde(default)]
+    pub cone_leaves: usize,
     /// Boundary refinement spends its rays where the light is: per level, the marked cells that
     /// gate the least light are left at their size while the light they gate sums to at most this
     /// fraction of the vertex's hemisphere total ([`LightGate`]; 0: every marked cell is refined,
@@ -95,6 +105,7 @@ impl Default for CutSettings {
             ray_offset: 1e-4,
             boundary_levels: 0,
             boundary_budget: 0.002,
+            cone_leaves: 0,
         }
     }
 }
@@ -173,6 +184,10 @@ struct Ctx<'a> {
     n: DVec3,
     nf: Vec3A,
     trace_leaves: usize,
+    /// [`CutSettings::cone_leaves`].
+    cone_leaves: usize,
+    /// The end (leaf index) of the last node whose cells were traced as one batch.
+    batched_end: u32,
     cell_leaves: usize,
     boundary_levels: u32,
     /// [`CutSettings::boundary_budget`].
@@ -462,6 +477,8 @@ pub fn vertex_cut(
         n: normal,
         nf: normal.as_vec3().into(),
         trace_leaves: settings.trace_leaves.max(settings.cell_leaves).max(1),
+        cone_leaves: settings.cone_leaves,
+        batched_end: 0,
         cell_leaves: settings.cell_leaves.max(1),
         boundary_levels: settings.boundary_levels,
         budget: settings.boundary_budget.max(0.0),
@@ -593,7 +610,9 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         out.push((k as u32, v as f32));
         return (w, w * v, 0.0);
     }
-    if !known {
+    // Cone tests above the traced nodes, and inside them down to `cone_leaves`.
+    let cone = !known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves);
+    if cone {
         let free = if ctx.redo {
             ctx.free.binary_search(&(k as u32)).is_ok()
         } else {
@@ -636,9 +655,18 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     let known_below = known || node.count as usize <= ctx.trace_leaves;
     // Packets for the first pass only: its cells tile the hemisphere in leaf order, so a packet's
     // rays point alike. The cells a boundary refinement adds are scattered along shadow edges; in
-    // packets they ran slower than one at a time (dragon_100k under studio_1k: 34 → 42 s).
-    if known_below && !known && !ctx.redo {
+    // packets they ran slower than one at a time (dragon_100k under studio_1k: 34 → 42 s). With
+    // cone tests inside traced nodes, the packets are the cells of the first node small enough
+    // not to be tested.
+    let batch = if ctx.cone_leaves > 0 {
+        // Nodes come in leaf order: one that starts before the last batch's end lies inside it.
+        known_below && node.count as usize <= ctx.cone_leaves && node.first >= ctx.batched_end
+    } else {
+        known_below && !known
+    };
+    if batch && !ctx.redo {
         trace_cells(ctx, k, cell);
+        ctx.batched_end = node.first + node.count;
     }
     let known = known_below;
     let start = out.len();

@@ -560,9 +560,16 @@ pub fn decide_cell(
         .chain(CELL_CANDIDATES)
         .map(|(deg, levels)| {
             let leaves = cell_leaves(resolution, deg);
+            // The reference (cells of one direction) cone-tests down to REFERENCE_CONE_LEAVES:
+            // the same cut, without a ray into each direction of open sky.
             let settings = CutSettings {
                 cell_leaves: leaves,
                 boundary_levels: levels,
+                cone_leaves: if leaves == 1 {
+                    REFERENCE_CONE_LEAVES
+                } else {
+                    cut.cone_leaves
+                },
                 ..*cut
             };
             (settings, CellNeighbours::new(set, tree, leaves, levels))
@@ -684,6 +691,12 @@ pub fn decide_cell(
         errors,
     }
 }
+
+/// [`CutSettings::cone_leaves`] of decision (d)'s reference, a ray per direction.
+const REFERENCE_CONE_LEAVES: usize = match std::option_env!("GLINT_TMP_CONE") {
+    Some(_) => 64,
+    None => 0,
+};
 
 /// (d), second part: how many times cells at a shadow edge are traced again as cells half as wide
 /// ([`crate::bake::CutSettings::boundary_levels`]), and why: as set, or as [`decide_cell`] decided

@@ -665,3 +665,39 @@ fn a_capped_cut_keeps_the_irradiance_of_the_uncapped_one() {
         );
     }
 }
+
+/// Cone tests inside the traced nodes (`CutSettings::cone_leaves`, what decision (d)'s reference
+/// uses) give the cuts of tracing every direction — a free cone holds no geometry — with fewer
+/// rays: the teapot, a ray per direction, cut by cut.
+#[test]
+fn cone_tests_inside_traced_nodes_keep_the_cut_and_save_rays() {
+    let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let env = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let bake = |cone_leaves: usize| {
+        let mut s = settings(32, 0.02);
+        s.cut.cone_leaves = cone_leaves;
+        s.refine.interpolate = false;
+        let baker = Baker::new(&scene, &env, s).unwrap();
+        let bake = baker.bake_all(None, &|_| {});
+        let e = cut_irradiance(&baker, &bake, &vec![1.0; baker.tree.leaf_count()]);
+        (e, bake)
+    };
+    let (traced, all) = bake(0);
+    let (coned, tested) = bake(16);
+    for (v, (a, b)) in traced.iter().zip(&coned).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-9 * a.max(1.0),
+            "vertex {v}: {b} with cone tests against {a}"
+        );
+    }
+    let nodes = |b: &glint::bake::Bake, v: usize| b.cuts.nodes_of(v).to_vec();
+    let differ = (0..traced.len())
+        .filter(|&v| nodes(&all, v) != nodes(&tested, v))
+        .count();
+    assert_eq!(differ, 0, "{differ} vertices' cut nodes differ");
+    println!(
+        "rays: {} traced every direction, {} with cone tests",
+        all.stats.rays_traced, tested.stats.rays_traced
+    );
+    assert!(tested.stats.rays_traced * 10 < all.stats.rays_traced * 9);
+}
