@@ -62,13 +62,7 @@ impl MatrixStudy {
     /// One line: how many cases meet 2 % (object pixels) and 4 % (silhouette pixels), and the
     /// worst.
     pub fn summary(&self) -> String {
-        let ok = self
-            .rows
-            .iter()
-            .filter(|r| {
-                r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)
-            })
-            .count();
+        let ok = self.rows.iter().filter(|r| r.within_as_measured()).count();
         let worst = self
             .rows
             .iter()
@@ -315,6 +309,19 @@ pub enum Frame {
 }
 
 impl Knob {
+    /// The CSV's word for it.
+    pub fn code(self) -> &'static str {
+        match self {
+            Knob::Defaults => "defaults",
+            Knob::TraceVisibility => "traced",
+            Knob::TraceLevels => "levels",
+            Knob::FinerReference(Frame::Default) => "finer-reference-default",
+            Knob::FinerReference(Frame::Traced) => "finer-reference-traced",
+            Knob::FinerReference(Frame::Levels) => "finer-reference-levels",
+            Knob::None => "none",
+        }
+    }
+
     /// In words, with the command-line flags.
     pub fn describe(self) -> String {
         let frame = |f: Frame| match f {
@@ -338,6 +345,11 @@ impl Knob {
 }
 
 impl MatrixRow {
+    /// Within 2 % over object pixels and 4 % over silhouette pixels as measured (noise included).
+    pub fn within_as_measured(&self) -> bool {
+        self.rel_rmse <= 0.02 && (self.silhouette_pixels == 0 || self.silhouette_rel_rmse <= 0.04)
+    }
+
     /// The PRT's own error: the RMSE with the reference's noise taken out in quadrature.
     pub fn error_less_noise(&self) -> f64 {
         less_noise(self.rel_rmse, self.reference_noise)
@@ -832,14 +844,7 @@ pub fn csv(rows: &[MatrixRow]) -> String {
             )),
             None => out.push_str(",,,,,,,,,,"),
         }
-        let knob = match r.knob() {
-            Knob::Defaults => "defaults".to_string(),
-            Knob::TraceVisibility => "traced".to_string(),
-            Knob::TraceLevels => "levels".to_string(),
-            Knob::FinerReference(f) => format!("finer-reference-{f:?}").to_lowercase(),
-            Knob::None => "none".to_string(),
-        };
-        out.push_str(&format!(",{knob}\n"));
+        out.push_str(&format!(",{}\n", r.knob().code()));
     }
     out
 }
@@ -848,10 +853,7 @@ pub fn csv(rows: &[MatrixRow]) -> String {
 /// pixels), as measured and with the reference's noise taken out, and the cheapest knob that brings
 /// each case within; then every case, worst first; then the cases past `--trace-visibility`.
 pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
-    let within = |r: &MatrixRow| {
-        r.rel_rmse <= 0.02 && (r.silhouette_pixels == 0 || r.silhouette_rel_rmse <= 0.04)
-    };
-    let ok = rows.iter().filter(|r| within(r)).count();
+    let ok = rows.iter().filter(|r| r.within_as_measured()).count();
     let count = |k: &dyn Fn(Knob) -> bool| rows.iter().filter(|r| k(r.knob())).count();
     let secs = |f: &dyn Fn(&MatrixRow) -> f64| -> f64 { rows.iter().map(f).sum() };
     let mut out = format!(
