@@ -19,7 +19,7 @@ use crate::bake::{BakeSettings, Baker, Tracer};
 use crate::env::EnvMap;
 use crate::fit::material::{FitStats, Material};
 use crate::light::LightSums;
-use crate::render::traced::TRACED_BOUNDARY_LEVELS;
+use crate::render::traced::{TRACED_BOUNDARY_LEVELS, Tracing};
 use crate::render::{
     ExactMaterial, Image, PhPyramid, Prt, PrtSettings, Shading, Specular, render_reference,
     render_traced, table,
@@ -81,11 +81,12 @@ impl MatrixStudy {
         let knobs: Vec<Knob> = self.rows.iter().map(MatrixRow::knob).collect();
         let n = |f: &dyn Fn(Knob) -> bool| knobs.iter().filter(|&&k| f(k)).count();
         format!(
-            "{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}; with the reference's noise taken out, {} at the defaults, {} more with --trace-visibility, {} with --trace-levels {FINER_LEVELS}, {} within only against {FINER_SPP}x the reference's samples, {} with no knob tried",
+            "{ok} of {} cases within 2 % (object pixels) and 4 % (silhouette pixels){}; with the reference's noise taken out, {} at the defaults, {} more with --trace-visibility, {} with --trace-budget 0, {} with --trace-levels {FINER_LEVELS} as well, {} within only against {FINER_SPP}x the reference's samples, {} with no knob tried",
             self.rows.len(),
             worst.unwrap_or_default(),
             n(&|k| k == Knob::Defaults),
             n(&|k| k == Knob::TraceVisibility),
+            n(&|k| k == Knob::TraceAllEdges),
             n(&|k| k == Knob::TraceLevels),
             n(&|k| matches!(k, Knob::FinerReference(_))),
             n(&|k| k == Knob::None),
@@ -258,12 +259,14 @@ pub struct TracedCase {
 }
 
 /// The steps after `--trace-visibility` for a case it leaves outside the goals: the traced frame
-/// with its pixels' cells refined down to single directions at shadow edges (`--trace-levels`
-/// [`FINER_LEVELS`]), and where that misses too, every frame against a reference of
-/// [`FINER_SPP`] times the samples (a miss that goes away there was the reference's noise).
+/// with every shadow edge refined (`--trace-budget 0`); where that misses, its cells refined down
+/// to single directions at those edges as well (`--trace-levels` [`FINER_LEVELS`]); and where
+/// that misses too, every frame against a reference of [`FINER_SPP`] times the samples (a miss
+/// that goes away there was the reference's noise).
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct Finer {
-    pub levels: TracedCase,
+    pub all_edges: TracedCase,
+    pub levels: Option<TracedCase>,
     pub reference: Option<FinerReference>,
 }
 
@@ -273,16 +276,23 @@ pub struct FinerReference {
     pub spp: u32,
     pub noise: f64,
     pub silhouette_noise: f64,
-    /// (object, silhouette) relative RMSE of the default frame, the traced frame and the traced
-    /// frame at [`FINER_LEVELS`].
+    /// (object, silhouette) relative RMSE of the default frame, the traced frame, the traced
+    /// frame at budget 0 and (where rendered) at [`FINER_LEVELS`] as well.
     pub default: (f64, f64),
     pub traced: (f64, f64),
-    pub levels: (f64, f64),
+    pub all_edges: (f64, f64),
+    pub levels: Option<(f64, f64)>,
     pub secs: f64,
 }
 
-/// `--trace-levels` of the matrix's second knob: 4 levels take the decided cells (at most 16
-/// directions a side) down to single directions at shadow edges.
+/// The traced frame of the matrix's third knob: every shadow edge refined (`--trace-budget 0`).
+pub const ALL_EDGES: Tracing = Tracing {
+    levels: TRACED_BOUNDARY_LEVELS,
+    budget: Some(0.0),
+};
+
+/// `--trace-levels` of the matrix's fourth knob (with `--trace-budget 0`): 4 levels take the
+/// decided cells (at most 16 directions a side) down to single directions at shadow edges.
 pub const FINER_LEVELS: u32 = 4;
 
 /// How many times the samples the finer reference takes.
@@ -293,6 +303,9 @@ pub const FINER_SPP: u32 = 4;
 pub enum Knob {
     Defaults,
     TraceVisibility,
+    /// `--trace-visibility --trace-budget 0`.
+    TraceAllEdges,
+    /// `--trace-visibility --trace-budget 0 --trace-levels` [`FINER_LEVELS`].
     TraceLevels,
     /// Within only against the finer reference, with the frame named.
     FinerReference(Frame),
@@ -305,6 +318,7 @@ pub enum Knob {
 pub enum Frame {
     Default,
     Traced,
+    AllEdges,
     Levels,
 }
 
@@ -314,9 +328,11 @@ impl Knob {
         match self {
             Knob::Defaults => "defaults",
             Knob::TraceVisibility => "traced",
+            Knob::TraceAllEdges => "all-edges",
             Knob::TraceLevels => "levels",
             Knob::FinerReference(Frame::Default) => "finer-reference-default",
             Knob::FinerReference(Frame::Traced) => "finer-reference-traced",
+            Knob::FinerReference(Frame::AllEdges) => "finer-reference-all-edges",
             Knob::FinerReference(Frame::Levels) => "finer-reference-levels",
             Knob::None => "none",
         }
@@ -327,11 +343,15 @@ impl Knob {
         let frame = |f: Frame| match f {
             Frame::Default => "defaults".to_string(),
             Frame::Traced => "--trace-visibility".to_string(),
-            Frame::Levels => format!("--trace-visibility --trace-levels {FINER_LEVELS}"),
+            Frame::AllEdges => "--trace-visibility --trace-budget 0".to_string(),
+            Frame::Levels => {
+                format!("--trace-visibility --trace-budget 0 --trace-levels {FINER_LEVELS}")
+            }
         };
         match self {
             Knob::Defaults => frame(Frame::Default),
             Knob::TraceVisibility => frame(Frame::Traced),
+            Knob::TraceAllEdges => frame(Frame::AllEdges),
             Knob::TraceLevels => frame(Frame::Levels),
             Knob::FinerReference(f) => {
                 format!(
@@ -380,10 +400,11 @@ impl MatrixRow {
         let Some(finer) = &self.finer else {
             return Knob::None;
         };
-        if self.meets(
-            (finer.levels.rel_rmse, finer.levels.silhouette_rel_rmse),
-            noise,
-        ) {
+        let errors = |c: &TracedCase| (c.rel_rmse, c.silhouette_rel_rmse);
+        if self.meets(errors(&finer.all_edges), noise) {
+            return Knob::TraceAllEdges;
+        }
+        if finer.levels.is_some_and(|l| self.meets(errors(&l), noise)) {
             return Knob::TraceLevels;
         }
         let Some(r) = &finer.reference else {
@@ -391,12 +412,13 @@ impl MatrixRow {
         };
         let noise = (r.noise, r.silhouette_noise);
         [
-            (Frame::Default, r.default),
-            (Frame::Traced, r.traced),
+            (Frame::Default, Some(r.default)),
+            (Frame::Traced, Some(r.traced)),
+            (Frame::AllEdges, Some(r.all_edges)),
             (Frame::Levels, r.levels),
         ]
         .into_iter()
-        .find(|&(_, e)| self.meets(e, noise))
+        .find(|&(_, e)| e.is_some_and(|e| self.meets(e, noise)))
         .map_or(Knob::None, |(f, _)| Knob::FinerReference(f))
     }
 }
@@ -600,13 +622,20 @@ pub fn run(
                 tangents.as_deref(),
                 PrtSettings::default(),
             );
-            // The knob `--trace-visibility`: pixels traced as `glint render` traces them; and
-            // with `--trace-levels` FINER_LEVELS, for the cases that miss with it.
-            let tracing = |levels| {
-                crate::render::traced::tracing_settings(bake.settings, &bake.decisions, levels)
+            // The knob `--trace-visibility`: pixels traced as `glint render` traces them; then,
+            // for the cases that miss with it, with `--trace-budget 0` and with
+            // `--trace-levels` FINER_LEVELS as well.
+            let tracing = |t| {
+                let settings =
+                    crate::render::traced::tracing_settings(bake.settings, &bake.decisions, t);
+                Baker::new(&refined, env, settings)
             };
-            let pixel_baker = Baker::new(&refined, env, tracing(TRACED_BOUNDARY_LEVELS))?;
-            let finer_baker = Baker::new(&refined, env, tracing(FINER_LEVELS))?;
+            let pixel_baker = tracing(Tracing::default())?;
+            let all_edges_baker = tracing(ALL_EDGES)?;
+            let finer_baker = tracing(Tracing {
+                levels: FINER_LEVELS,
+                ..ALL_EDGES
+            })?;
             progress(
                 i * maps.len() + j,
                 total,
@@ -721,18 +750,29 @@ pub fn run(
                             finer: None,
                         };
                         // The next knobs, only where the traced frame misses.
-                        if row.knob() == Knob::None {
-                            let (levels_img, stats, secs) = traced_frame(&finer_baker);
-                            let e = errors(&levels_img, &truth);
-                            let levels = TracedCase {
+                        let case = |baker: &Baker| {
+                            let (img, stats, secs) = traced_frame(baker);
+                            let e = errors(&img, &truth);
+                            let case = TracedCase {
                                 rel_rmse: e.0,
                                 silhouette_rel_rmse: e.1,
                                 secs,
                                 traced_pixels: stats.traced,
                                 rays: stats.rays,
                             };
+                            (img, case)
+                        };
+                        if row.knob() == Knob::None {
+                            let (all_edges_img, all_edges) = case(&all_edges_baker);
                             row.finer = Some(Finer {
-                                levels,
+                                all_edges,
+                                levels: None,
+                                reference: None,
+                            });
+                            let levels = (row.knob() == Knob::None).then(|| case(&finer_baker));
+                            row.finer = Some(Finer {
+                                all_edges,
+                                levels: levels.as_ref().map(|l| l.1),
                                 reference: None,
                             });
                             if row.knob() == Knob::None {
@@ -740,14 +780,16 @@ pub fn run(
                                 let fine = reference(spp);
                                 let (noise, silhouette_noise) = fine.noise(&all, &silhouette);
                                 row.finer = Some(Finer {
-                                    levels,
+                                    all_edges,
+                                    levels: levels.as_ref().map(|l| l.1),
                                     reference: Some(FinerReference {
                                         spp,
                                         noise,
                                         silhouette_noise,
                                         default: errors(&img, &fine),
                                         traced: errors(&traced_img, &fine),
-                                        levels: errors(&levels_img, &fine),
+                                        all_edges: errors(&all_edges_img, &fine),
+                                        levels: levels.as_ref().map(|l| errors(&l.0, &fine)),
                                         secs: fine.secs,
                                     }),
                                 });
@@ -797,7 +839,7 @@ impl Reference {
 /// The matrix as CSV (one row per case; the finer knobs' columns empty where not tried).
 pub fn csv(rows: &[MatrixRow]) -> String {
     let mut out = String::from(
-        "mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,silhouette_noise,prt_secs,reference_secs,traced_rel_rmse,traced_silhouette_rel_rmse,traced_secs,traced_pixels,traced_rays,levels_rel_rmse,levels_silhouette_rel_rmse,levels_secs,levels_rays,finer_spp,finer_noise,finer_silhouette_noise,finer_default_rel_rmse,finer_default_silhouette_rel_rmse,finer_traced_rel_rmse,finer_traced_silhouette_rel_rmse,finer_levels_rel_rmse,finer_levels_silhouette_rel_rmse,finer_secs,knob\n",
+        "mesh,map,view,rotation_deg,material,rel_rmse,silhouette_rel_rmse,object_pixels,silhouette_pixels,reference_noise,silhouette_noise,prt_secs,reference_secs,traced_rel_rmse,traced_silhouette_rel_rmse,traced_secs,traced_pixels,traced_rays,all_edges_rel_rmse,all_edges_silhouette_rel_rmse,all_edges_secs,all_edges_rays,levels_rel_rmse,levels_silhouette_rel_rmse,levels_secs,levels_rays,finer_spp,finer_noise,finer_silhouette_noise,finer_default_rel_rmse,finer_default_silhouette_rel_rmse,finer_traced_rel_rmse,finer_traced_silhouette_rel_rmse,finer_all_edges_rel_rmse,finer_all_edges_silhouette_rel_rmse,finer_levels_rel_rmse,finer_levels_silhouette_rel_rmse,finer_secs,knob\n",
     );
     for r in rows {
         out.push_str(&format!(
@@ -821,28 +863,31 @@ pub fn csv(rows: &[MatrixRow]) -> String {
             r.traced.traced_pixels,
             r.traced.rays
         ));
-        match &r.finer {
-            Some(f) => out.push_str(&format!(
-                ",{:.5},{:.5},{:.4},{}",
-                f.levels.rel_rmse, f.levels.silhouette_rel_rmse, f.levels.secs, f.levels.rays
-            )),
-            None => out.push_str(",,,,"),
-        }
+        let case = |c: Option<&TracedCase>| {
+            c.map_or(",,,,".to_string(), |c| {
+                format!(
+                    ",{:.5},{:.5},{:.4},{}",
+                    c.rel_rmse, c.silhouette_rel_rmse, c.secs, c.rays
+                )
+            })
+        };
+        out.push_str(&case(r.finer.as_ref().map(|f| &f.all_edges)));
+        out.push_str(&case(r.finer.as_ref().and_then(|f| f.levels.as_ref())));
+        let pair = |e: Option<(f64, f64)>| {
+            e.map_or(",,".to_string(), |e| format!(",{:.5},{:.5}", e.0, e.1))
+        };
         match r.finer.as_ref().and_then(|f| f.reference.as_ref()) {
-            Some(x) => out.push_str(&format!(
-                ",{},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.5},{:.3}",
-                x.spp,
-                x.noise,
-                x.silhouette_noise,
-                x.default.0,
-                x.default.1,
-                x.traced.0,
-                x.traced.1,
-                x.levels.0,
-                x.levels.1,
-                x.secs
-            )),
-            None => out.push_str(",,,,,,,,,,"),
+            Some(x) => {
+                out.push_str(&format!(
+                    ",{},{:.5},{:.5}",
+                    x.spp, x.noise, x.silhouette_noise
+                ));
+                for e in [Some(x.default), Some(x.traced), Some(x.all_edges), x.levels] {
+                    out.push_str(&pair(e));
+                }
+                out.push_str(&format!(",{:.3}", x.secs));
+            }
+            None => out.push_str(",,,,,,,,,,,,"),
         }
         out.push_str(&format!(",{}\n", r.knob().code()));
     }
@@ -864,9 +909,11 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
     let order = [
         Knob::Defaults,
         Knob::TraceVisibility,
+        Knob::TraceAllEdges,
         Knob::TraceLevels,
         Knob::FinerReference(Frame::Default),
         Knob::FinerReference(Frame::Traced),
+        Knob::FinerReference(Frame::AllEdges),
         Knob::FinerReference(Frame::Levels),
         Knob::None,
     ];
@@ -877,12 +924,15 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
         }
     }
     out.push_str(&format!(
-        "\nCost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s with `--trace-visibility` ({:.1} M rays); `--trace-levels {FINER_LEVELS}` was rendered for {} cases ({:.1} s) and the reference at {FINER_SPP}× the samples for {} ({:.1} s).\n\n",
+        "\nCost over the whole matrix: {:.1} s of frames at the defaults, {:.1} s with `--trace-visibility` ({:.1} M rays); `--trace-budget 0` was rendered for {} cases ({:.1} s, against {:.1} s for the same cases with `--trace-visibility` alone), `--trace-levels {FINER_LEVELS}` as well for {} ({:.1} s) and the reference at {FINER_SPP}× the samples for {} ({:.1} s).\n\n",
         secs(&|r| r.prt_secs),
         secs(&|r| r.traced.secs),
         rows.iter().map(|r| r.traced.rays).sum::<u64>() as f64 / 1e6,
         rows.iter().filter(|r| r.finer.is_some()).count(),
-        secs(&|r| r.finer.map_or(0.0, |f| f.levels.secs)),
+        secs(&|r| r.finer.map_or(0.0, |f| f.all_edges.secs)),
+        secs(&|r| r.finer.map_or(0.0, |_| r.traced.secs)),
+        rows.iter().filter(|r| r.finer.is_some_and(|f| f.levels.is_some())).count(),
+        secs(&|r| r.finer.and_then(|f| f.levels).map_or(0.0, |l| l.secs)),
         rows.iter().filter(|r| r.finer.is_some_and(|f| f.reference.is_some())).count(),
         secs(&|r| r.finer.and_then(|f| f.reference).map_or(0.0, |x| x.secs)),
     ));
@@ -916,8 +966,8 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
     }
     let past: Vec<&MatrixRow> = rows.iter().filter(|r| r.finer.is_some()).collect();
     if !past.is_empty() {
-        out.push_str(&format!("\n## Past `--trace-visibility`\n\nThe cases the traced frame leaves outside the goals: the traced frame at `--trace-levels {FINER_LEVELS}` (errors less noise, object / silhouette, and its time), and where that misses too, the default, traced and `--trace-levels {FINER_LEVELS}` frames against the reference at {FINER_SPP}× the samples (its noise, then each frame's errors less that noise).\n\n"));
-        out.push_str("| mesh | map | view | rotation | material | levels: less noise | levels s | finer reference: noise (silhouette) | default | traced | levels | knob |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        out.push_str(&format!("\n## Past `--trace-visibility`\n\nThe cases the traced frame leaves outside the goals: the traced frame with every shadow edge refined (`--trace-budget 0`), then where that misses at `--trace-levels {FINER_LEVELS}` as well (errors less noise, object / silhouette, and their times), and where both miss, every frame against the reference at {FINER_SPP}× the samples (its noise, then each frame's errors less that noise).\n\n"));
+        out.push_str("| mesh | map | view | rotation | material | budget 0: less noise | budget 0 s | levels: less noise | levels s | finer reference: noise (silhouette) | default | traced | budget 0 | levels | knob |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for r in past {
             let Some(f) = r.finer else { continue };
             let pair = |e: (f64, f64), n: (f64, f64)| {
@@ -928,10 +978,14 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
                 )
             };
             let noise = (r.reference_noise, r.silhouette_noise);
-            let (fine_noise, d, t, l) = match f.reference {
+            let errors = |c: &TracedCase| (c.rel_rmse, c.silhouette_rel_rmse);
+            let (levels, levels_secs) = f.levels.map_or(Default::default(), |l| {
+                (pair(errors(&l), noise), format!("{:.3}", l.secs))
+            });
+            let fine: [String; 5] = match f.reference {
                 Some(x) => {
                     let n = (x.noise, x.silhouette_noise);
-                    (
+                    [
                         format!(
                             "{:.2} % ({:.2} %)",
                             100.0 * x.noise,
@@ -939,24 +993,24 @@ pub fn markdown(rows: &[MatrixRow], title: &str) -> String {
                         ),
                         pair(x.default, n),
                         pair(x.traced, n),
-                        pair(x.levels, n),
-                    )
+                        pair(x.all_edges, n),
+                        x.levels.map_or(String::new(), |e| pair(e, n)),
+                    ]
                 }
                 None => Default::default(),
             };
             out.push_str(&format!(
-                "| {} | {} | {} | {}° | {} | {} | {:.3} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {}° | {} | {} | {:.3} | {} | {} | {} | {} |\n",
                 r.mesh,
                 r.map,
                 r.view,
                 r.rotation_deg,
                 r.material,
-                pair((f.levels.rel_rmse, f.levels.silhouette_rel_rmse), noise),
-                f.levels.secs,
-                fine_noise,
-                d,
-                t,
-                l,
+                pair(errors(&f.all_edges), noise),
+                f.all_edges.secs,
+                levels,
+                levels_secs,
+                fine.join(" | "),
                 r.knob().describe()
             ));
         }
@@ -1008,6 +1062,81 @@ mod tests {
                 .iter()
                 .flatten()
                 .all(|&i| (i as usize) < p.positions.len())
+        );
+    }
+
+    /// The ladder: each rung is named only where every cheaper one misses, errors judged less
+    /// the noise of the reference they were measured against.
+    #[test]
+    fn the_knob_is_the_first_rung_within() {
+        let case = |e: f64| TracedCase {
+            rel_rmse: e,
+            silhouette_rel_rmse: e,
+            secs: 1.0,
+            traced_pixels: 1,
+            rays: 1,
+        };
+        let mut row = MatrixRow {
+            mesh: "m".into(),
+            map: "e".into(),
+            view: "v".into(),
+            rotation_deg: 0.0,
+            material: "sharp".into(),
+            rel_rmse: 0.05,
+            silhouette_rel_rmse: 0.05,
+            object_pixels: 100,
+            silhouette_pixels: 10,
+            reference_noise: 0.012,
+            silhouette_noise: 0.012,
+            prt_secs: 1.0,
+            reference_secs: 1.0,
+            traced: case(0.03),
+            finer: None,
+        };
+        assert_eq!(row.knob(), Knob::None);
+        // 2.3 % with 1.2 % of noise is 1.96 % less noise: within.
+        row.traced = case(0.023);
+        assert_eq!(row.knob(), Knob::TraceVisibility);
+        row.traced = case(0.03);
+        let mut finer = Finer {
+            all_edges: case(0.023),
+            levels: None,
+            reference: None,
+        };
+        row.finer = Some(finer);
+        assert_eq!(row.knob(), Knob::TraceAllEdges);
+        finer.all_edges = case(0.025);
+        finer.levels = Some(case(0.02));
+        row.finer = Some(finer);
+        assert_eq!(row.knob(), Knob::TraceLevels);
+        finer.levels = Some(case(0.025));
+        let mut reference = FinerReference {
+            spp: 4096,
+            noise: 0.006,
+            silhouette_noise: 0.006,
+            default: (0.05, 0.05),
+            traced: (0.022, 0.022),
+            all_edges: (0.02, 0.02),
+            levels: Some((0.019, 0.019)),
+            secs: 1.0,
+        };
+        finer.reference = Some(reference);
+        row.finer = Some(finer);
+        assert_eq!(row.knob(), Knob::FinerReference(Frame::AllEdges));
+        reference.all_edges = (0.022, 0.022);
+        finer.reference = Some(reference);
+        row.finer = Some(finer);
+        assert_eq!(row.knob(), Knob::FinerReference(Frame::Levels));
+        // A silhouette over 4 % less noise misses, whatever the object pixels read.
+        reference.levels = Some((0.019, 0.05));
+        finer.reference = Some(reference);
+        row.finer = Some(finer);
+        assert_eq!(row.knob(), Knob::None);
+        assert_eq!(Knob::TraceAllEdges.code(), "all-edges");
+        assert!(
+            Knob::TraceLevels
+                .describe()
+                .contains("--trace-budget 0 --trace-levels 4")
         );
     }
 }

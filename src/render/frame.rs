@@ -10,6 +10,7 @@
 //! surface at 1e-4 of the scene's diagonal (docs/conventions.md §6); an anisotropic material on a
 //! scene without tangents is an error.
 
+use super::traced::Tracing;
 use super::{ExactMaterial, Image, Prt, PrtSettings, Shading, Specular, render_reference, table};
 use crate::bake::{BakeError, Baker, LoadedBake, Tracer};
 use crate::brdf::standard::StandardMaterial;
@@ -45,7 +46,7 @@ pub fn material_lobes(bake: &LoadedBake, material: &Material) -> Result<LobeSet,
 }
 
 /// The CPU PRT frame (default settings, p tabulated at its default resolution); `traced`: with
-/// per-pixel traced visibility, its cells refined at shadow edges at least this many times
+/// per-pixel traced visibility, its cells refined at shadow edges as it says
 /// ([`super::traced::tracing_settings`]).
 pub fn prt_frame(
     bake: &LoadedBake,
@@ -53,7 +54,7 @@ pub fn prt_frame(
     camera: &Camera,
     (w, h): (u32, u32),
     rotation_rad: f64,
-    traced: Option<u32>,
+    traced: Option<Tracing>,
 ) -> Result<(Image, String), FrameError> {
     let lobes = material_lobes(bake, material)?;
     let c = &material.coefficients;
@@ -79,7 +80,7 @@ pub fn prt_frame_standard(
     camera: &Camera,
     size: (u32, u32),
     rotation_rad: f64,
-    traced: Option<u32>,
+    traced: Option<Tracing>,
 ) -> Result<(Image, String), FrameError> {
     let shading = Shading {
         rho_d: material.back_facing_rho(),
@@ -105,10 +106,10 @@ fn prt_render(
     (w, h): (u32, u32),
     rotation_rad: f64,
     shading: &Shading,
-    traced: Option<u32>,
+    traced: Option<Tracing>,
 ) -> Result<(Image, String), FrameError> {
-    if let Some(levels) = traced {
-        let baker = bake_tracer(bake, levels)?;
+    if let Some(tracing) = traced {
+        let baker = bake_tracer(bake, tracing)?;
         let light = LightSums::new(&bake.env, &baker.set, &baker.tree, rotation_rad);
         let (img, stats) = super::render_traced(
             &baker,
@@ -143,11 +144,10 @@ fn prt_render(
 }
 
 /// A [`Baker`] over the bake's mesh that traces a frame's pixels as
-/// [`super::traced::tracing_settings`] says (with at least `levels` boundary levels); no decision
-/// is made again.
-pub fn bake_tracer(bake: &LoadedBake, levels: u32) -> Result<Baker<'_>, FrameError> {
+/// [`super::traced::tracing_settings`] says; no decision is made again.
+pub fn bake_tracer(bake: &LoadedBake, tracing: Tracing) -> Result<Baker<'_>, FrameError> {
     let settings =
-        super::traced::tracing_settings(bake.header.settings, &bake.header.decisions, levels);
+        super::traced::tracing_settings(bake.header.settings, &bake.header.decisions, tracing);
     Ok(Baker::new(&bake.scene, &bake.env, settings)?)
 }
 

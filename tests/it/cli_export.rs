@@ -349,6 +349,10 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
             "traced4.exr",
             vec!["--trace-visibility", "--trace-levels", "4"],
         ),
+        (
+            "traced_all_edges.exr",
+            vec!["--trace-visibility", "--trace-budget", "0"],
+        ),
     ];
     // The wgpu preview where an adapter exists (always in CI: lavapipe; tests/it/gpu.rs checks its
     // values).
@@ -438,6 +442,21 @@ fn render_writes_png_and_exr_and_refuses_bad_arguments() {
     ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(!dir.join("z.exr").exists());
+    // --trace-budget is a share of the light: 2 is refused with one line, nothing written.
+    let out = run_glint!([
+        "render".as_ref(),
+        bake.as_os_str(),
+        "--material".as_ref(),
+        material.as_os_str(),
+        "--trace-visibility".as_ref(),
+        "--trace-budget".as_ref(),
+        "2".as_ref(),
+        "--out".as_ref(),
+        dir.join("w.exr").as_os_str()
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not a share of the light"));
+    assert!(!dir.join("w.exr").exists());
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -209,9 +209,11 @@ fn quick_accuracy_matrix() {
     let knobs = [
         "defaults",
         "traced",
+        "all-edges",
         "levels",
         "finer-reference-default",
         "finer-reference-traced",
+        "finer-reference-all-edges",
         "finer-reference-levels",
         "none",
     ];
@@ -234,10 +236,15 @@ fn quick_accuracy_matrix() {
             Some(k) => assert_eq!(knob, k, "{r:?}"),
             None => {
                 assert!(!["defaults", "traced"].contains(&knob), "{r:?}");
-                assert!(num(r, "levels_rays") > 0.0, "{r:?}");
+                // Every shadow edge refined: at least the rays of the bake's budget.
+                assert!(num(r, "all_edges_rays") >= num(r, "traced_rays"), "{r:?}");
+                let all_edges = meets("all_edges_rel_rmse", "all_edges_silhouette_rel_rmse");
+                assert_eq!(knob == "all-edges", all_edges, "{r:?}");
+                // The levels are rendered only where budget 0 misses.
+                assert_eq!(r[col("levels_rel_rmse")].is_empty(), all_edges, "{r:?}");
             }
         }
-        let tried = !r[col("levels_rel_rmse")].is_empty();
+        let tried = !r[col("all_edges_rel_rmse")].is_empty();
         assert_eq!(tried, expected.is_none(), "{r:?}");
     }
     assert!(

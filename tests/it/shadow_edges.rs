@@ -16,7 +16,7 @@ use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
 use glint::render::render_traced;
-use glint::render::traced::{TRACED_BOUNDARY_LEVELS, tracing_settings};
+use glint::render::traced::{Tracing, tracing_settings};
 
 /// A mesh under a map, baked as `glint bake` does, its default frame and its traced frame against
 /// two Monte Carlo references (the second for the reference's own noise).
@@ -84,7 +84,7 @@ fn measure(
     let pixel_baker = Baker::new(
         &refined,
         &env,
-        tracing_settings(bake.settings, &bake.decisions, TRACED_BOUNDARY_LEVELS),
+        tracing_settings(bake.settings, &bake.decisions, Tracing::default()),
     )
     .unwrap();
     let (traced, stats) = render_traced(

@@ -75,6 +75,11 @@ pub struct RenderArgs {
     /// the bake decides).
     #[arg(long, requires = "trace_visibility", default_value_t = glint::render::traced::TRACED_BOUNDARY_LEVELS)]
     pub trace_levels: u32,
+    /// With --trace-visibility: the light budget of that refinement (default: the bake's, 0.002):
+    /// shadow edges of lights carrying less than this share of the light are left unrefined; 0
+    /// refines every shadow edge, for a sharp lobe that takes its light from a dim one.
+    #[arg(long, requires = "trace_visibility", value_parser = budget_share)]
+    pub trace_budget: Option<f64>,
     /// Exposure applied before tone mapping (PNG only).
     #[arg(long, default_value_t = 1.0)]
     pub exposure: f32,
@@ -393,5 +398,13 @@ pub fn energy_cache_dir() -> Option<PathBuf> {
         None => var("XDG_CACHE_HOME")
             .map(|d| PathBuf::from(d).join("glint"))
             .or_else(|| var("HOME").map(|h| PathBuf::from(h).join(".cache").join("glint"))),
+    }
+}
+
+/// `--trace-budget`: a share of the light, in [0, 1].
+fn budget_share(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
+        _ => Err(format!("{s} is not a share of the light in [0, 1]")),
     }
 }

@@ -258,7 +258,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         .then(|| read_fallback(&args.material))
         .transpose()?;
     let (c, size, r) = (&camera, (w, h), rotation);
-    let traced = args.trace_visibility.then_some(args.trace_levels);
+    let traced = args
+        .trace_visibility
+        .then_some(glint::render::traced::Tracing {
+            levels: args.trace_levels,
+            budget: args.trace_budget,
+        });
     let (mut image, what) = match (args.reference, &fallback) {
         (Some(n), Some(f)) => frame::reference_frame_standard(&bake, f, c, size, r, n)?,
         (None, Some(f)) => frame::prt_frame_standard(&bake, f, c, size, r, traced)?,
