@@ -87,19 +87,29 @@ fn main() {
         let scene = bake.scene(&scene).unwrap();
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
-        // The last row is the default without its grazing points' runs resolved inside their
-        // leaves, side by side.
-        for (label, max_edge_px, partition_deg, per_pixel, resolve_leaves) in [
-            ("vertices", 0.0, default_deg, false, true),
-            ("vertices", 0.0, 16.0, false, true),
-            ("1-px triangles", 1.0, default_deg, false, true),
-            ("per pixel (default)", 1.0, default_deg, true, true),
+        // The last rows are the default with its grazing points' runs resolved inside their
+        // leaves below a lower view cosine, and not at all, side by side.
+        let below = glint::render::prt::RESOLVE_BELOW;
+        for (label, max_edge_px, partition_deg, per_pixel, resolve_leaves, resolve_below) in [
+            ("vertices", 0.0, default_deg, false, true, below),
+            ("vertices", 0.0, 16.0, false, true, below),
+            ("1-px triangles", 1.0, default_deg, false, true, below),
+            ("per pixel (default)", 1.0, default_deg, true, true, below),
+            (
+                "per pixel, grazing runs resolved below wo·n = 0.3",
+                1.0,
+                default_deg,
+                true,
+                true,
+                0.3,
+            ),
             (
                 "per pixel, grazing runs not resolved",
                 1.0,
                 default_deg,
                 true,
                 false,
+                below,
             ),
         ] {
             let prt = Prt::new(
@@ -112,6 +122,7 @@ fn main() {
                     partition_deg,
                     per_pixel,
                     resolve_leaves,
+                    resolve_below,
                     ..PrtSettings::default()
                 },
             );

@@ -104,7 +104,7 @@ pub struct PrtSettings {
     /// isotropic pre-filter of a node's light stands in for that. Off: one partition for
     /// every point.
     pub grazing_tiers: bool,
-    /// With `per_pixel`: at points seen at wo·n < [`RESOLVE_BELOW`], the runs that carry more than
+    /// With `per_pixel`: at points seen at wo·n < `resolve_below`, the runs that carry more than
     /// [`RESOLVE_SHARE`] of the point's specular estimate are integrated inside their leaves, over
     /// the cells of [`LightSums::inside`] (the map's own radiance, up to 4×4 cells a leaf) with
     /// the BRDF unfiltered at each cell, instead of once per run at its light's direction and
@@ -114,6 +114,8 @@ pub struct PrtSettings {
     /// sharp lobe at an orbit view, map turned 90°: 5.92 → 2.33 % off Monte Carlo (2.15 % of it
     /// the reference's noise), frame +6–39 % (`cargo bench --bench render`).
     pub resolve_leaves: bool,
+    /// The view cosine below which `resolve_leaves` integrates inside leaves ([`RESOLVE_BELOW`]).
+    pub resolve_below: f64,
 }
 
 impl Default for PrtSettings {
@@ -136,6 +138,7 @@ impl Default for PrtSettings {
             merge_runs: true,
             grazing_tiers: true,
             resolve_leaves: true,
+            resolve_below: RESOLVE_BELOW,
         }
     }
 }
@@ -921,7 +924,7 @@ impl<'a> Prt<'a> {
         if has_specular
             && self.settings.per_pixel
             && self.settings.resolve_leaves
-            && wo.z < RESOLVE_BELOW
+            && wo.z < self.settings.resolve_below
             && let Some(inside) = light.inside()
         {
             return self.shade_resolved(
