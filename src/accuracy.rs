@@ -770,29 +770,26 @@ pub fn run(
                                 reference: None,
                             });
                             let levels = (row.knob() == Knob::None).then(|| case(&finer_baker));
-                            row.finer = Some(Finer {
-                                all_edges,
-                                levels: levels.as_ref().map(|l| l.1),
-                                reference: None,
-                            });
+                            if let Some(f) = row.finer.as_mut() {
+                                f.levels = levels.as_ref().map(|l| l.1);
+                            }
                             if row.knob() == Knob::None {
                                 let spp = options.spp * FINER_SPP;
                                 let fine = reference(spp);
                                 let (noise, silhouette_noise) = fine.noise(&all, &silhouette);
-                                row.finer = Some(Finer {
-                                    all_edges,
-                                    levels: levels.as_ref().map(|l| l.1),
-                                    reference: Some(FinerReference {
-                                        spp,
-                                        noise,
-                                        silhouette_noise,
-                                        default: errors(&img, &fine),
-                                        traced: errors(&traced_img, &fine),
-                                        all_edges: errors(&all_edges_img, &fine),
-                                        levels: levels.as_ref().map(|l| errors(&l.0, &fine)),
-                                        secs: fine.secs,
-                                    }),
-                                });
+                                let reference = FinerReference {
+                                    spp,
+                                    noise,
+                                    silhouette_noise,
+                                    default: errors(&img, &fine),
+                                    traced: errors(&traced_img, &fine),
+                                    all_edges: errors(&all_edges_img, &fine),
+                                    levels: levels.as_ref().map(|l| errors(&l.0, &fine)),
+                                    secs: fine.secs,
+                                };
+                                if let Some(f) = row.finer.as_mut() {
+                                    f.reference = Some(reference);
+                                }
                             }
                         }
                         rows.push(row);
