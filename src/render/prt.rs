@@ -67,6 +67,14 @@ type EstimatedRun = ((usize, usize), f64, [f64; 3], f64);
 /// A shading point's distinct corners with their weights, how many, position, normal and frame.
 type PointGeometry = ([(u32, f64); 3], usize, DVec3, DVec3, Frame);
 
+/// Whether vertex `v` of the renderer's mesh sees along the unit world direction `dir`: where a
+/// point's leaves are resolved ([`PrtSettings::resolve_leaves`]), the visibility of each cell
+/// inside them in place of its run's V, the cut's cosine-weighted mean over the leaves
+/// ([`crate::bake::cuts`]). A sharp lobe seen at a grazing angle reflects into a few cells near
+/// the horizon, where that mean weighs visibility by a small cosine and so merges it over wide
+/// nodes. The caller traces it ([`super::traced`]); the renderer casts no rays.
+pub type CellVisibility<'a> = dyn Fn(u32, DVec3) -> bool + Sync + 'a;
+
 /// Knobs of the PRT renderer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PrtSettings {
@@ -859,7 +867,7 @@ impl<'a> Prt<'a> {
         eye: DVec3,
         shading: &Shading,
     ) -> [f64; 3] {
-        self.shade_point_with(point, light, None, &[], eye, shading)
+        self.shade_point_with(point, light, None, &[], eye, shading, None)
     }
 
     /// The partition nodes' light under `light` (for [`Self::for_each_lit_piece`]).
@@ -891,6 +899,9 @@ impl<'a> Prt<'a> {
     }
 
     /// `tier_light`: [`Self::tier_light`], or empty to read the tiers' runs from the prefix sums.
+    /// `cells`: where given, the visibility of the cells inside resolved leaves
+    /// ([`CellVisibility`]).
+    #[allow(clippy::too_many_arguments)] // the point, its light and view, the material
     fn shade_point_with(
         &self,
         point: &ShadingPoint,
@@ -899,6 +910,7 @@ impl<'a> Prt<'a> {
         tier_light: &[Vec<NodeLight>],
         eye: DVec3,
         shading: &Shading,
+        cells: Option<&CellVisibility<'_>>,
     ) -> [f64; 3] {
         let Some((corners, count, position, n, frame)) = self.point_geometry(point) else {
             return [0.0; 3];
@@ -938,6 +950,7 @@ impl<'a> Prt<'a> {
                 node_light,
                 inside,
                 shading,
+                cells.zip(point.as_vertex()),
             );
         }
         let (mut e, mut spec) = ([0.0f64; 3], [0.0f64; 3]);
@@ -985,6 +998,7 @@ impl<'a> Prt<'a> {
         node_light: Option<&[NodeLight]>,
         inside: &crate::light::InsideLight,
         shading: &Shading,
+        cells: Option<(&CellVisibility<'_>, u32)>,
     ) -> [f64; 3] {
         let specular = shading.specular;
         let estimate = |vis_cos_power: [f64; 3], dir: DVec3, v_omega: f64| {
@@ -1041,8 +1055,12 @@ impl<'a> Prt<'a> {
                     if let Some((s, p)) =
                         self.run_specular(dir, 0.0, frame, wo, wo_world, shading.f0, specular)
                     {
+                        let v = match cells {
+                            Some((visible, point)) => f64::from(u8::from(visible(point, dir))),
+                            None => vis,
+                        };
                         for c in 0..3 {
-                            spec[c] += vis * power[c] as f64 * cos * s * p[c];
+                            spec[c] += v * power[c] as f64 * cos * s * p[c];
                         }
                     }
                 }
@@ -1204,7 +1222,7 @@ impl<'a> Prt<'a> {
             .map(|p| {
                 self.shade_cached(p, cache, eye, shading)
                     .unwrap_or_else(|| {
-                        self.shade_point_with(p, light, Some(&node_light), &[], eye, shading)
+                        self.shade_point_with(p, light, Some(&node_light), &[], eye, shading, None)
                     })
             })
             .collect();
@@ -1219,11 +1237,34 @@ impl<'a> Prt<'a> {
         eye: DVec3,
         shading: &Shading,
     ) -> Vec<[f64; 3]> {
+        self.shade_points_with(points, light, eye, shading, None)
+    }
+
+    /// [`Self::shade_points`] with, where given, each vertex point's visibility of the cells inside
+    /// the leaves it resolves ([`CellVisibility`]) in place of its runs' V.
+    pub fn shade_points_with(
+        &self,
+        points: &[ShadingPoint],
+        light: &LightSums,
+        eye: DVec3,
+        shading: &Shading,
+        cells: Option<&CellVisibility<'_>>,
+    ) -> Vec<[f64; 3]> {
         let node_light = self.node_light(light);
         let tier_light = self.tier_light(light);
         points
             .par_iter()
-            .map(|p| self.shade_point_with(p, light, Some(&node_light), &tier_light, eye, shading))
+            .map(|p| {
+                self.shade_point_with(
+                    p,
+                    light,
+                    Some(&node_light),
+                    &tier_light,
+                    eye,
+                    shading,
+                    cells,
+                )
+            })
             .collect()
     }
 

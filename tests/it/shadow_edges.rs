@@ -26,7 +26,24 @@ struct Measured {
     /// Relative RMSE over object pixels, less the reference's noise: default, traced.
     default: f64,
     traced: f64,
+    /// The traced frame's over silhouette pixels (object pixels with a background 4-neighbour),
+    /// less the reference's noise there.
+    traced_silhouette: f64,
 }
+
+/// Where a frame is seen from: the default camera or an orbit (azimuth°, elevation°, distance in
+/// bounding radii), and the map's rotation.
+#[derive(Clone, Copy)]
+struct View {
+    orbit: Option<[f32; 3]>,
+    rotation_deg: f64,
+}
+
+/// The scene's default camera, the map as it is.
+const DEFAULT_VIEW: View = View {
+    orbit: None,
+    rotation_deg: 0.0,
+};
 
 /// The material's p(h) table at its default resolution, as frames use it.
 fn table_of(m: &glint::fit::material::Material) -> glint::render::PhPyramid {
@@ -39,11 +56,20 @@ fn table_of(m: &glint::fit::material::Material) -> glint::render::PhPyramid {
     )
 }
 
-/// `diffuse`: ρd 0.8 and no lobe; else [`one_sharp_lobe`].
+/// ρd 0.8 and no lobe.
+fn diffuse() -> glint::fit::material::Material {
+    let mut m = one_sharp_lobe();
+    m.rho_d = [0.8; 3];
+    m.coefficients.iter_mut().for_each(|c| c.fill(0.0));
+    m
+}
+
+/// `m`: the material; with no lobe ([`diffuse`]) the frames shade no specular term.
 fn measure(
     mesh: &std::path::Path,
     map: &std::path::Path,
-    diffuse: bool,
+    m: glint::fit::material::Material,
+    view: View,
     (w, h): (u32, u32),
     spp: u32,
 ) -> Measured {
@@ -53,14 +79,18 @@ fn measure(
     let bake = baker.bake_refined(None, &|_| {});
     let refined = bake.scene(&scene).unwrap();
     let (_, tangents, _) = glint::bake::decisions::decide_frames(&refined.mesh);
-    let mut camera = glint::scene::default_camera(&scene.bounds);
-    camera.aspect = w as f32 / h as f32;
-    let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
-    let mut m = one_sharp_lobe();
-    if diffuse {
-        m.rho_d = [0.8; 3];
-        m.coefficients.iter_mut().for_each(|c| c.fill(0.0));
-    }
+    let camera = match view.orbit {
+        Some([az, el, distance]) => {
+            glint::scene::orbit_camera(&scene.bounds, az, el, distance, w, h)
+        }
+        None => glint::scene::Camera {
+            aspect: w as f32 / h as f32,
+            ..glint::scene::default_camera(&scene.bounds)
+        },
+    };
+    let rotation = view.rotation_deg.to_radians();
+    let light = LightSums::new(&env, &baker.set, &baker.tree, rotation);
+    let diffuse = m.coefficients.iter().flatten().all(|&c| c == 0.0);
     let lobes = m.lobes().unwrap();
     let c = &m.coefficients;
     let table = table_of(&m);
@@ -108,7 +138,7 @@ fn measure(
             &tracer,
             baker.ray_offset(),
             &env,
-            0.0,
+            rotation,
             ExactMaterial {
                 lobes: &lobes,
                 coefficients: [&c[0], &c[1], &c[2]],
@@ -122,24 +152,35 @@ fn measure(
             seed,
         )
     };
-    let (mc, second) = (reference(1), reference(2));
+    // The mean of two seeds is the reference; half their difference is its noise.
+    let (a, b) = (reference(1), reference(2));
+    let mut mc = a.clone();
+    for (p, q) in mc.pixels.iter_mut().zip(&b.pixels) {
+        *p = std::array::from_fn(|k| 0.5 * (p[k] + q[k]));
+    }
     assert_eq!(stats.pixels, mc.covered_count());
     let all = vec![true; mc.pixels.len()];
-    let rmse = |a: &glint::render::Image| glint::accuracy::masked_rel_rmse(a, &mc, &all).0;
-    let noise = rmse(&second) / std::f64::consts::SQRT_2;
-    let less = |e: f64| (e * e - noise * noise).max(0.0).sqrt();
+    let silhouette = glint::accuracy::silhouette_mask(&mc);
+    let rmse =
+        |x: &glint::render::Image, mask: &[bool]| glint::accuracy::masked_rel_rmse(x, &mc, mask).0;
+    let noise_in = |mask: &[bool]| 0.5 * glint::accuracy::masked_rel_rmse(&a, &b, mask).0;
+    let (noise, noise_sil) = (noise_in(&all), noise_in(&silhouette));
+    let less = |e: f64, n: f64| (e * e - n * n).max(0.0).sqrt();
     let measured = Measured {
         decisions: bake.decisions.clone(),
         stats,
-        default: less(rmse(&default)),
-        traced: less(rmse(&traced)),
+        default: less(rmse(&default, &all), noise),
+        traced: less(rmse(&traced, &all), noise),
+        traced_silhouette: less(rmse(&traced, &silhouette), noise_sil),
     };
     println!(
-        "{} under {}, {}, {w}x{h}, {spp} spp: cells {}°, {} levels; {} pixels, {} traced ({} rays); \
-         vs MC less its noise ({:.2} %): default {:.2} %, traced {:.2} %",
+        "{} under {}, {}, orbit {:?}, map turned {}°, {w}x{h}, {spp} spp: cells {}°, {} levels; {} pixels, {} traced ({} rays); \
+         vs MC less its noise ({:.2} %): default {:.2} %, traced {:.2} % (silhouette {:.2} %, noise {:.2} %)",
         mesh.display(),
         map.display(),
-        if diffuse { "diffuse" } else { "one sharp lobe" },
+        if diffuse { "diffuse" } else { "specular" },
+        view.orbit,
+        view.rotation_deg,
         measured.decisions.cell_deg,
         measured.decisions.boundary_levels,
         stats.pixels,
@@ -148,6 +189,8 @@ fn measure(
         100.0 * noise,
         100.0 * measured.default,
         100.0 * measured.traced,
+        100.0 * measured.traced_silhouette,
+        100.0 * noise_sil,
     );
     measured
 }
@@ -163,7 +206,8 @@ fn area_probes_refine_the_cells_of_a_shadow_on_large_triangles() {
     let m = measure(
         &samples.join("brushed_sphere.glb"),
         &common::assets().join("hdr/interior_1k.exr"),
-        true,
+        diffuse(),
+        DEFAULT_VIEW,
         (96, 72),
         2048,
     );
@@ -179,15 +223,17 @@ fn area_probes_refine_the_cells_of_a_shadow_on_large_triangles() {
 /// The teapot under courtyard_1k, one sharp lobe, default view: its spout and lid shadow the body
 /// across triangles whose corners see them differently, and decision (d) leaves the bake's cells
 /// unrefined under the soft sky. The default frame blends the corners' cuts and is 8.8 % off;
-/// traced per pixel (cells refined at shadow edges) 2.6 % (128×96, 4096 spp, less noise) — not
-/// yet the 2 % goal, so the bound is 3 % — and only the pixels whose corners disagree are traced.
+/// traced per pixel (cells refined at shadow edges, and a ray per cell inside the leaves grazing
+/// points resolve) 1.5 % (128×96, 4096 × 2 spp, less noise) — 2.6 % with the runs' V inside those
+/// leaves — and only the pixels whose corners disagree get cuts of their own.
 #[test]
 fn traced_visibility_follows_shadows_across_triangles() {
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let m = measure(
         &samples.join("teapot.glb"),
         &samples.join("courtyard_1k.exr"),
-        false,
+        one_sharp_lobe(),
+        DEFAULT_VIEW,
         (128, 96),
         4096,
     );
@@ -196,12 +242,41 @@ fn traced_visibility_follows_shadows_across_triangles() {
         "only the pixels whose corners disagree are traced: {:?}",
         m.stats
     );
-    assert!(m.traced <= 0.03, "traced frame {:.2} %", 100.0 * m.traced);
+    assert!(m.traced <= 0.02, "traced frame {:.2} %", 100.0 * m.traced);
     assert!(
         m.default >= 2.0 * m.traced,
         "the corner blend is what tracing removes: default {:.2} %, traced {:.2} %",
         100.0 * m.default,
         100.0 * m.traced
+    );
+}
+
+/// A sharp lobe seen at grazing angles where the vertex normals lean 17–31° from the faces: the
+/// teapot under studio_1k turned 90°, orbit 20°/15°/2.5, the accuracy matrix's sharp material
+/// (one ring lobe along n, λ = 81). There the lobe reflects into a few cells near the horizon, which the cut's
+/// cosine-weighted V merges over wide nodes: V = 1 where the neighbouring faces block the light.
+/// With the traced frame's visibility taken per cell inside the leaves it resolves (a ray each),
+/// the frame is within the accuracy goal (2 % over object pixels, 4 % over silhouette pixels,
+/// less the reference's noise); with the runs' V it was 2.27 % (128×96, 4096 × 2 spp).
+#[test]
+fn traced_cells_see_the_faces_a_grazing_lobe_reflects_into() {
+    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let m = measure(
+        &samples.join("teapot.glb"),
+        &samples.join("studio_1k.exr"),
+        glint::accuracy::materials(false).swap_remove(0).1,
+        View {
+            orbit: Some([20.0, 15.0, 2.5]),
+            rotation_deg: 90.0,
+        },
+        (128, 96),
+        4096,
+    );
+    assert!(
+        m.traced <= 0.02 && m.traced_silhouette <= 0.04,
+        "traced frame {:.2} %, silhouette {:.2} %",
+        100.0 * m.traced,
+        100.0 * m.traced_silhouette
     );
 }
 
