@@ -12,7 +12,7 @@
 //! and the still frame that replaces it once the view rests (`glint render`'s PRT frame), timed at
 //! 640×480 and measured against the Monte Carlo reference at 320×240 (2 × 1024 spp; the reference's
 //! own noise, estimated from its two halves, is printed beside the errors); `-- still` runs only
-//! that table.
+//! that table, and `-- still --spp N` takes 2 × N spp for the reference (a less noisy one).
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -69,7 +69,17 @@ fn main() {
     // `cargo bench --bench render -- still`: the still-frame table only.
     #[cfg(feature = "gui")]
     if std::env::args().any(|a| a == "still") {
-        still_frames(&shading);
+        let args: Vec<String> = std::env::args().collect();
+        let spp = args
+            .iter()
+            .position(|a| a == "--spp")
+            .map(|i| {
+                args.get(i + 1)
+                    .and_then(|n| n.parse().ok())
+                    .expect("--spp takes a whole number of samples")
+            })
+            .unwrap_or(1024);
+        still_frames(&shading, spp);
         return;
     }
     let mut gpu_rows = Vec::new();
@@ -254,12 +264,13 @@ fn main() {
         println!("{row}");
     }
     #[cfg(feature = "gui")]
-    still_frames(&shading);
+    still_frames(&shading, 1024);
 }
 
-/// The app's still frame against its preview frame (see the module docs).
+/// The app's still frame against its preview frame (see the module docs), the reference at 2 ×
+/// `spp` samples a pixel.
 #[cfg(feature = "gui")]
-fn still_frames(shading: &Shading) {
+fn still_frames(shading: &Shading, spp: u32) {
     use glint::app::engine::preview_settings;
     use glint::render::{ExactMaterial, render_reference};
     let lobes = LobeSet::new(
@@ -277,9 +288,9 @@ fn still_frames(shading: &Shading) {
     };
     println!();
     println!(
-        "| scene | CPU preview frame 640×480 (s) | still frame 640×480 (s) | CPU preview vs MC | wgpu preview's shading vs MC | still vs MC | MC noise |"
+        "| scene | CPU preview frame 640×480 (s) | still frame 640×480 (s) | CPU preview vs MC | wgpu preview's shading vs MC | still vs MC | MC noise (2 × {spp} spp) | CPU preview, still vs MC less noise |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for (mesh, env) in [
         ("bunny", "hdr/small/studio_512.exr"),
         ("dragon_100k", "hdr/courtyard_1k.exr"),
@@ -328,7 +339,7 @@ fn still_frames(shading: &Shading) {
                 &camera,
                 w,
                 h,
-                1024,
+                spp,
                 seed,
             )
         };
@@ -345,12 +356,15 @@ fn still_frames(shading: &Shading) {
             frame(PrtSettings::default(), w, h),
         );
         let gpu_preview = frame(preview_settings(true), w, h);
+        let less = |e: f64| (e * e - noise * noise).max(0.0).sqrt();
         println!(
-            "| {mesh} | {t_preview:.3} | {t_still:.3} | {:.2} % | {:.2} % | {:.2} % | {:.2} % |",
+            "| {mesh} | {t_preview:.3} | {t_still:.3} | {:.2} % | {:.2} % | {:.2} % | {:.2} % | {:.2} %, {:.2} % |",
             100.0 * err(&preview),
             100.0 * err(&gpu_preview),
             100.0 * err(&still),
-            100.0 * noise
+            100.0 * noise,
+            100.0 * less(err(&preview)),
+            100.0 * less(err(&still)),
         );
     }
 }
