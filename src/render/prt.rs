@@ -171,6 +171,13 @@ pub const RESOLVE_BELOW: f64 = 0.5;
 /// estimate exceeds this share of the point's (luminance), so at most 1/share runs a point.
 pub const RESOLVE_SHARE: f64 = 1e-3;
 
+/// [`CellVisibility`]: a cell inside a resolved leaf is asked for its own visibility where its
+/// light through the BRDF exceeds this share of the point's specular estimate (luminance), else
+/// it takes its run's V. The teapot under studio_1k, 12 views and materials of the accuracy
+/// matrix, traced: 34.4 M → 5.6 M rays, 13.1 → 6.3 s, no error moved by more than 0.01 points (a
+/// share of 10⁻² lost 0.15 points on the sharp lobe at the orbit, turned 90°).
+pub const CELL_SHARE: f64 = 1e-3;
+
 /// A render-partition node's light under one rotation: per channel its radiant moment, and the
 /// luminance of its power. Read once per frame (a few hundred nodes) instead of four prefix-sum
 /// entries per run: 77 % of a frame's runs are whole partition nodes (dragon_100k, 16°), and the
@@ -1036,6 +1043,7 @@ impl<'a> Prt<'a> {
         );
         let total: f64 = runs.iter().map(|r| luminance(r.2)).sum();
         let threshold = RESOLVE_SHARE * total;
+        let cell_threshold = CELL_SHARE * total;
         let leaf_texels = self.tree.leaf_texels();
         let mut spec = [0.0f64; 3];
         for ((a, z), vis, est, select) in runs {
@@ -1055,12 +1063,16 @@ impl<'a> Prt<'a> {
                     if let Some((s, p)) =
                         self.run_specular(dir, 0.0, frame, wo, wo_world, shading.f0, specular)
                     {
+                        let light: [f64; 3] =
+                            std::array::from_fn(|c| power[c] as f64 * cos * s * p[c]);
                         let v = match cells {
-                            Some((visible, point)) => f64::from(u8::from(visible(point, dir))),
-                            None => vis,
+                            Some((visible, point)) if luminance(light) > cell_threshold => {
+                                f64::from(u8::from(visible(point, dir)))
+                            }
+                            _ => vis,
                         };
                         for c in 0..3 {
-                            spec[c] += v * power[c] as f64 * cos * s * p[c];
+                            spec[c] += v * light[c];
                         }
                     }
                 }
