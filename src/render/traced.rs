@@ -18,12 +18,12 @@
 //! the vertices of a point mesh that [`Prt`] shades one by one, with one change: inside the leaves
 //! a grazing point resolves ([`PrtSettings::resolve_leaves`]) each cell that carries light
 //! ([`super::prt::CELL_SHARE`]) has its visibility from a ray of its own from the pixel's origin
-//! ([`CellVisibility`]), not its run's V. A cut's V is a
-//! cosine-weighted mean, so near the horizon — where a sharp lobe seen at a grazing angle
-//! reflects — it is merged over wide nodes, and a lobe a few degrees wide falls on directions
-//! that V = 1 says are open and a neighbouring face blocks (the teapot under studio_1k turned
-//! 90°, orbit view, one sharp lobe, where vertex normals lean 17–31° from the faces: 2.27 →
-//! 1.51 % off 4096 × 2 spp less its noise, at 128×96).
+//! ([`CellVisibility`]), not its run's V. A cut's V is a cosine-weighted mean, so near the
+//! horizon — where a sharp lobe seen at a grazing angle reflects — it is merged over wide nodes,
+//! and a lobe a few degrees wide falls on directions that V = 1 says are open and a neighbouring
+//! face blocks (the teapot under studio_1k turned 90°, orbit view, one sharp lobe, where vertex
+//! normals lean 17–31° from the faces: 2.27 → 1.51 % off 4096 × 2 spp less its noise, at
+//! 128×96).
 //!
 //! Inputs: a [`Baker`] over the mesh the bake's cuts belong to (its tree is the light sums'), the
 //! mesh, its cuts and tangents, the light, camera, image size, the material, [`PrtSettings`]
