@@ -7,13 +7,15 @@
 //!   own, as the table used to be built) and as the table builds it now (each distinct geometry
 //!   once), then read back from the disk cache; median of 3 each, side by side in one run.
 //! - `rays`: the bake's rays (cell directions above the tangent plane at ~1,000 vertices) one at a
-//!   time through the CWBVH (three build qualities) and in packets through the BVH2, side by side.
+//!   time through the CWBVH (three build qualities) and in packets through the BVH2, and through
+//!   Embree one at a time and in packets where the build has it, side by side.
 //! - `million`: the 1.6 M-triangle mesh (dragon_100k split twice): bake time and peak memory.
 //! - `matrix`: `glint bake`'s default bake (decisions, refinement) of each of bunny, teapot,
 //!   suzanne, dragon.glb and dragon_100k under each of studio_1k, courtyard_1k and interior_1k:
 //!   median of 3 of the whole bake's seconds, with its rays, rays/s and refined vertices; with
 //!   `single` among the arguments, each bake also with the tracer one ray at a time, side by side;
-//!   with `traced`, each bake also with every vertex traced in full (no vertex sampling, decision
+//!   with `obvhs`, each bake also with obvhs tracing the rays (where the build has Embree), side
+//!   by side; with `traced`, each bake also with every vertex traced in full (no vertex sampling, decision
 //!   (f)), side by side; with `unbudgeted`, each bake that refines shadow edges also as 5.625°
 //!   cells refined twice at every shadow edge (no light budget), side by side.
 //! - `view`: dragon_100k.glb (49,892 vertices) under courtyard_1k, default bake settings. Prints,
@@ -25,6 +27,7 @@
 //!   fastest and slowest (one compute is ~45 ms, so a single one reads the machine's noise as much
 //!   as the code).
 
+use glint::bake::tracer::Backend;
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
 use glint::sphere::{LobeLayout, LobeSet, srbf};
@@ -58,6 +61,8 @@ fn main() {
             .collect();
         let side_by_side = if sections.iter().any(|s| s == "single") {
             Some(Baseline::OneRayAtATime)
+        } else if sections.iter().any(|s| s == "obvhs") {
+            Some(Baseline::Obvhs)
         } else if sections.iter().any(|s| s == "traced") {
             Some(Baseline::EveryVertexTraced)
         } else if sections.iter().any(|s| s == "unbudgeted") {
@@ -146,8 +151,9 @@ fn energy() {
 /// Occlusion rays as the bake casts them: from each of ~1,000 vertices (offset 1e-4 of the
 /// diagonal along the normal) along the mean direction of every 5.625° visibility cell above its
 /// tangent plane (a 64-per-side direction set's light tree, cells of ≤ 12 leaves, in leaf order as
-/// the bake visits them), one ray at a time through obvhs's CWBVH (the old tracer, with three build
-/// qualities) and in packets of 8 through the BVH2 (`Tracer::occluded_from`), side by side.
+/// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
+/// packets of 8 through its BVH2, and through Embree one at a time and in packets of 8 (the bake's
+/// tracer where the build has Embree), side by side.
 fn rays() {
     use glam::{Vec3, Vec3A};
     use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};
@@ -197,50 +203,70 @@ fn rays() {
                 100.0 * hits as f64 / rays as f64
             );
         };
+        let singles = |tracer: &Tracer| {
+            median_of(3, || {
+                vertices
+                    .par_iter()
+                    .map(|(o, ds)| ds.iter().filter(|d| tracer.occluded(*o, **d)).count())
+                    .sum::<usize>()
+            })
+        };
+        let packets = |tracer: &Tracer| {
+            median_of(3, || {
+                vertices
+                    .par_iter()
+                    .map(|(o, ds)| {
+                        let mut out = vec![false; ds.len()];
+                        tracer.occluded_from(*o, ds, &mut out);
+                        out.iter().filter(|&&h| h).count()
+                    })
+                    .sum::<usize>()
+            })
+        };
         for (name, params) in [
             (
-                "CWBVH fast build, one ray at a time (the old tracer)",
+                "obvhs CWBVH fast build, one ray at a time",
                 BvhBuildParams::fast_build(),
             ),
             (
-                "CWBVH medium build, one ray at a time",
+                "obvhs CWBVH medium build, one ray at a time",
                 BvhBuildParams::medium_build(),
             ),
             (
-                "CWBVH slow build, one ray at a time",
+                "obvhs CWBVH slow build, one ray at a time",
                 BvhBuildParams::slow_build(),
             ),
         ] {
             let t = Instant::now();
             let tracer = Tracer::with_params(m, params);
             let build = t.elapsed().as_secs_f64();
-            let (secs, hits) = median_of(3, || {
-                vertices
-                    .par_iter()
-                    .map(|(o, ds)| ds.iter().filter(|d| tracer.occluded(*o, **d)).count())
-                    .sum::<usize>()
-            });
+            let (secs, hits) = singles(&tracer);
             row(name, build, secs, hits);
         }
         let t = Instant::now();
-        let tracer = Tracer::new(m);
+        let tracer = Tracer::with_backend(m, Backend::Obvhs);
         let build = t.elapsed().as_secs_f64();
-        let (secs, hits) = median_of(3, || {
-            vertices
-                .par_iter()
-                .map(|(o, ds)| {
-                    let mut out = vec![false; ds.len()];
-                    tracer.occluded_from(*o, ds, &mut out);
-                    out.iter().filter(|&&h| h).count()
-                })
-                .sum::<usize>()
-        });
+        let (secs, hits) = packets(&tracer);
         row(
-            &format!("BVH2, packets of {PACKET} (the new tracer)"),
+            &format!("obvhs BVH2, packets of {PACKET}"),
             build,
             secs,
             hits,
         );
+        if Backend::available().contains(&Backend::Embree) {
+            let t = Instant::now();
+            let tracer = Tracer::with_backend(m, Backend::Embree);
+            let build = t.elapsed().as_secs_f64();
+            let (secs, hits) = singles(&tracer);
+            row("Embree 3, one ray at a time", build, secs, hits);
+            let (secs, hits) = packets(&tracer);
+            row(
+                &format!("Embree 3, packets of {PACKET} (the bake's tracer)"),
+                build,
+                secs,
+                hits,
+            );
+        }
     }
 }
 
@@ -252,6 +278,8 @@ const MAPS: [&str; 3] = ["studio_1k", "courtyard_1k", "interior_1k"];
 enum Baseline {
     /// The tracer one ray at a time (`Tracer::set_packets(false)`).
     OneRayAtATime,
+    /// obvhs tracing the rays (`Backend::Obvhs`) where the default is Embree.
+    Obvhs,
     /// Every vertex traced in full (`RefineSettings::interpolate` off).
     EveryVertexTraced,
     /// Where decision (d) refines shadow edges, 5.625° cells refined twice at every shadow edge (no
@@ -264,6 +292,7 @@ enum Baseline {
 fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
     let baseline = match side_by_side {
         Some(Baseline::OneRayAtATime) => " bake, one ray at a time (s) |",
+        Some(Baseline::Obvhs) => " bake, rays through obvhs (s; rays) |",
         Some(Baseline::EveryVertexTraced) => " bake, every vertex traced (s; rays) |",
         Some(Baseline::Unbudgeted) => " bake, 5.625° cells refined at every edge (s; rays) |",
         None => "",
@@ -297,7 +326,12 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
                         settings.boundary_levels = Some(2);
                         settings.cut.boundary_budget = 0.0;
                     }
-                    let mut baker = Baker::new(&scene, &env, settings).unwrap();
+                    let backend = if baseline == Some(Baseline::Obvhs) {
+                        Backend::Obvhs
+                    } else {
+                        Backend::best()
+                    };
+                    let mut baker = Baker::with_backend(&scene, &env, settings, backend).unwrap();
                     baker
                         .tracer
                         .set_packets(baseline != Some(Baseline::OneRayAtATime));
@@ -314,15 +348,21 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
             let (secs, stats) = bake(None);
             // Packets and single rays disagree only for rays within rounding of a triangle's edge
             // (about 1 in 10⁵), which can move a boundary cell: the rays differ as little.
-            if let (Some(s), Some(Baseline::OneRayAtATime)) = (&base, side_by_side) {
+            // So do the two tracers.
+            if let (Some(s), Some(Baseline::OneRayAtATime | Baseline::Obvhs)) =
+                (&base, side_by_side)
+            {
                 let (a, b) = (s.rays_traced as f64, stats.rays_traced as f64);
                 assert!(
                     (a - b).abs() <= 1e-4 * b,
-                    "{a} rays one at a time, {b} in packets"
+                    "{a} rays in the baseline, {b} in the default bake"
                 );
             }
             let base = match (base, side_by_side) {
-                (Some(s), Some(Baseline::EveryVertexTraced | Baseline::Unbudgeted)) => {
+                (
+                    Some(s),
+                    Some(Baseline::EveryVertexTraced | Baseline::Unbudgeted | Baseline::Obvhs),
+                ) => {
                     format!(" {base_secs:.2}; {:.1} M |", s.rays_traced as f64 / 1e6)
                 }
                 (Some(_), _) => format!(" {base_secs:.2} |"),

@@ -15,6 +15,8 @@
 
 pub mod cuts;
 pub mod decisions;
+#[cfg(embree)]
+pub mod embree;
 pub mod file;
 pub mod loaded;
 pub mod packed;
@@ -146,6 +148,10 @@ pub struct BakeStats {
     pub decision_seconds: f64,
     pub bytes: usize,
     pub bytes_per_vertex: f64,
+    /// What traced the rays ([`tracer::Backend::name`]; empty in bakes written before it was
+    /// recorded).
+    #[serde(default)]
+    pub tracer: String,
 }
 
 /// A finished bake.
@@ -205,8 +211,18 @@ pub struct Baker<'a> {
 }
 
 impl<'a> Baker<'a> {
-    /// Builds the BVH and makes the decisions.
+    /// Builds the BVH and makes the decisions; the rays go through [`tracer::Backend::best`].
     pub fn new(scene: &'a Scene, env: &EnvMap, settings: BakeSettings) -> Result<Self, BakeError> {
+        Self::with_backend(scene, env, settings, tracer::Backend::best())
+    }
+
+    /// [`Baker::new`] with the rays traced by `backend` (to compare tracers in whole bakes).
+    pub fn with_backend(
+        scene: &'a Scene,
+        env: &EnvMap,
+        settings: BakeSettings,
+        backend: tracer::Backend,
+    ) -> Result<Self, BakeError> {
         let start = std::time::Instant::now();
         let mesh = &scene.mesh;
         if mesh.positions.is_empty() {
@@ -250,7 +266,7 @@ impl<'a> Baker<'a> {
                 Ok((resolution, resolution_reason, probe_errors, set, tree))
             },
             || {
-                let tracer = Tracer::new(mesh);
+                let tracer = Tracer::with_backend(mesh, backend);
                 let occlusion = decisions::decide_occlusion(&positions, &normals, offset, &tracer);
                 (tracer, occlusion)
             },
@@ -912,6 +928,7 @@ impl<'a> Baker<'a> {
             decision_seconds: self.decision_seconds,
             bytes,
             bytes_per_vertex: bytes as f64 / n.max(1) as f64,
+            tracer: self.tracer.backend().name().to_string(),
         };
         Bake {
             settings: self.settings,

@@ -1,8 +1,9 @@
-//! Ray and cone queries against the object's triangles (obvhs).
+//! Ray and cone queries against the object's triangles (obvhs; the rays through Intel Embree 3
+//! where the build found it, [`Backend`]).
 //!
 //! Inputs: a world-space [`Mesh`]. Outputs: three queries, all conservative in the same direction:
-//! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit,
-//!   CWBVH)?
+//! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit:
+//!   Embree's `rtcOccluded1`, or obvhs's CWBVH)?
 //! - [`Tracer::cone_free`]: is *every* ray from `apex` inside a cone, and above the plane through
 //!   `apex` with normal `n`, certainly unoccluded? Traverses a BVH2 with bounding spheres; answers
 //!   `true` only when no triangle's bounding sphere meets the cone above the plane, so a `true` is
@@ -11,15 +12,17 @@
 //!   (Ṽ = V·max(cos, 0)), and the vertex's own neighbourhood lies below its tangent plane wherever
 //!   the surface is locally convex.
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
-//!   visibility cells), traced as packets of [`PACKET`] rays through the BVH2: a node's bounds
-//!   relative to the shared origin are computed once per packet, and a node is visited once for
-//!   all the packet's rays that reach it. Rays of neighbouring cells are nearly coherent, so a
-//!   packet visits few more nodes than one of its rays alone.
+//!   visibility cells), traced as packets of [`PACKET`] rays: Embree's `rtcOccluded8`, or
+//!   obvhs's BVH2, where a node's bounds relative to the shared origin are computed once per
+//!   packet and a node is visited once for all the packet's rays that reach it. Rays of
+//!   neighbouring cells are nearly coherent, so a packet visits few more nodes than one of its
+//!   rays alone.
 //!
-//! Invariants: degenerate (zero-area) triangles are kept out of the BVH (they cannot occlude); both
-//! ray queries use the same triangle test (obvhs's `RtTriangle::intersect`, lane by lane), so a ray
-//! gets the same answer alone or in a packet except where the two BVHs' node bounds round
-//! differently (a ray grazing a node's face); no IO.
+//! Invariants: degenerate (zero-area) triangles are kept out of the BVHs (they cannot occlude);
+//! with obvhs both ray queries use the same triangle test (`RtTriangle::intersect`, lane by
+//! lane), so a ray gets the same answer alone or in a packet except where the two BVHs' node
+//! bounds round differently (a ray grazing a node's face); Embree's answers differ from obvhs's
+//! only for rays within rounding of a triangle's edge (tested); no IO.
 
 use crate::scene::Mesh;
 use glam::{Vec3, Vec3A};
@@ -42,30 +45,98 @@ struct Sphere {
 /// Rays per packet in [`Tracer::occluded_from`].
 pub const PACKET: usize = 8;
 
+/// Which code traces [`Tracer::occluded`] and [`Tracer::occluded_from`] (the cone queries are
+/// always obvhs's BVH2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// obvhs: single rays through a CWBVH, a vertex's rays in packets through the BVH2.
+    Obvhs,
+    /// Intel Embree 3 (`rtcOccluded1`, and `rtcOccluded8` for a vertex's rays): 2–3× the rays per
+    /// second of obvhs on this project's meshes. Only where `build.rs` found the library.
+    Embree,
+}
+
+impl Backend {
+    /// Embree where this build has it, else obvhs.
+    pub fn best() -> Self {
+        if cfg!(embree) {
+            Self::Embree
+        } else {
+            Self::Obvhs
+        }
+    }
+
+    /// The backends this build can use (obvhs always).
+    pub fn available() -> &'static [Backend] {
+        if cfg!(embree) {
+            &[Self::Obvhs, Self::Embree]
+        } else {
+            &[Self::Obvhs]
+        }
+    }
+
+    /// The name `glint bake --json` reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Obvhs => "obvhs",
+            Self::Embree => "embree",
+        }
+    }
+}
+
+/// What traces the rays.
+enum Rays {
+    /// The triangles in CWBVH primitive order, in obvhs's intersection form, and the CWBVH.
+    Obvhs {
+        rt_triangles: Vec<RtTriangle>,
+        cwbvh: CwBvh,
+    },
+    #[cfg(embree)]
+    Embree(super::embree::EmbreeTracer),
+}
+
 /// Acceleration structures over the mesh.
 pub struct Tracer {
     /// In BVH2 primitive order (a BVH2 leaf's primitives are a range of it), with their bounding
     /// spheres.
     triangles: Vec<Triangle>,
-    /// The triangles again, in CWBVH primitive order, in obvhs's intersection form.
-    rt_triangles: Vec<RtTriangle>,
     spheres: Vec<Sphere>,
     bvh2: Bvh2,
-    cwbvh: CwBvh,
+    rays: Rays,
     /// Whether [`Tracer::occluded_from`] traces packets (else one ray at a time, as
     /// [`Tracer::occluded`]): on by default; off to measure what packets buy.
     packets: bool,
 }
 
 impl Tracer {
-    /// Builds both BVHs. Zero-area and non-finite triangles are skipped.
+    /// Builds the BVHs, the rays' through [`Backend::best`]. Zero-area and non-finite triangles
+    /// are skipped.
     pub fn new(mesh: &Mesh) -> Self {
-        Self::with_params(mesh, BvhBuildParams::fast_build())
+        Self::with_backend(mesh, Backend::best())
     }
 
-    /// [`Tracer::new`] with obvhs's build parameters for the CWBVH the rays traverse (the cone
+    /// [`Tracer::new`] with the rays traced by `backend` (obvhs if this build has no Embree, or
+    /// Embree cannot build its scene).
+    pub fn with_backend(mesh: &Mesh, backend: Backend) -> Self {
+        Self::build(mesh, backend, BvhBuildParams::fast_build())
+    }
+
+    /// An obvhs tracer with obvhs's build parameters for the CWBVH the rays traverse (the cone
     /// queries' BVH2 is always built fast).
     pub fn with_params(mesh: &Mesh, params: BvhBuildParams) -> Self {
+        Self::build(mesh, Backend::Obvhs, params)
+    }
+
+    /// Which backend traces the rays.
+    pub fn backend(&self) -> Backend {
+        match self.rays {
+            Rays::Obvhs { .. } => Backend::Obvhs,
+            #[cfg(embree)]
+            Rays::Embree(_) => Backend::Embree,
+        }
+    }
+
+    fn build(mesh: &Mesh, backend: Backend, params: BvhBuildParams) -> Self {
         let triangles: Vec<Triangle> = mesh
             .triangles
             .iter()
@@ -104,23 +175,42 @@ impl Tracer {
                 &mut build_time,
             )
         };
-        let cwbvh = if triangles.is_empty() {
-            CwBvh::default()
-        } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(&triangles, params, &mut build_time)
+        #[cfg(embree)]
+        let embree = (backend == Backend::Embree)
+            .then(|| super::embree::EmbreeTracer::new(&triangles).ok())
+            .flatten();
+        #[cfg(not(embree))]
+        let _ = backend;
+        let rays = match () {
+            #[cfg(embree)]
+            () if embree.is_some() => Rays::Embree(embree.expect("checked just above")),
+            () => {
+                let cwbvh = if triangles.is_empty() {
+                    CwBvh::default()
+                } else {
+                    obvhs::cwbvh::builder::build_cwbvh_from_tris(
+                        &triangles,
+                        params,
+                        &mut build_time,
+                    )
+                };
+                // The CWBVH's primitives in its own order, ready to intersect: single rays read
+                // them without an indirection (computing them per test, or reading them through
+                // an index into the BVH2's order, made single rays 7–11 % slower).
+                let rt_triangles = cwbvh
+                    .primitive_indices
+                    .iter()
+                    .map(|&i| {
+                        let t = &triangles[i as usize];
+                        RtTriangle::new(t.v0, t.v1, t.v2)
+                    })
+                    .collect();
+                Rays::Obvhs {
+                    rt_triangles,
+                    cwbvh,
+                }
+            }
         };
-        // The CWBVH's primitives in its own order, ready to intersect: single rays (the decisions'
-        // probes, the boundary refinement's cells, the Monte Carlo reference) read them without
-        // an indirection (computing them per test, or reading them through an index into the
-        // BVH2's order, made single rays 7–11 % slower).
-        let rt_triangles = cwbvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                let t = &triangles[i as usize];
-                RtTriangle::new(t.v0, t.v1, t.v2)
-            })
-            .collect();
         // BVH2 order from here on: the cone test and the packets read a leaf's range directly.
         let (triangles, spheres): (Vec<Triangle>, Vec<Sphere>) = bvh2
             .primitive_indices
@@ -129,10 +219,9 @@ impl Tracer {
             .unzip();
         Self {
             triangles,
-            rt_triangles,
             spheres,
             bvh2,
-            cwbvh,
+            rays,
             packets: true,
         }
     }
@@ -157,10 +246,17 @@ impl Tracer {
         if self.triangles.is_empty() {
             return false;
         }
-        let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
-        !self
-            .cwbvh
-            .ray_traverse_miss(ray, |ray, id| self.rt_triangles[id].intersect(ray))
+        match &self.rays {
+            Rays::Obvhs {
+                rt_triangles,
+                cwbvh,
+            } => {
+                let ray = Ray::new(origin, dir, 0.0, f32::INFINITY);
+                !cwbvh.ray_traverse_miss(ray, |ray, id| rt_triangles[id].intersect(ray))
+            }
+            #[cfg(embree)]
+            Rays::Embree(e) => e.occluded(origin, dir),
+        }
     }
 
     /// `out[i]` = whether the ray from `origin` along `dirs[i]` hits a triangle (t ≥ 0), as
@@ -176,6 +272,11 @@ impl Tracer {
             for (d, o) in dirs.iter().zip(out.iter_mut()) {
                 *o = self.occluded(origin, *d);
             }
+            return;
+        }
+        #[cfg(embree)]
+        if let Rays::Embree(e) = &self.rays {
+            e.occluded_from(origin, dirs, out);
             return;
         }
         for (d, o) in dirs.chunks(PACKET).zip(out.chunks_mut(PACKET)) {
@@ -474,10 +575,6 @@ mod tests {
     use super::*;
     use crate::math::Rng;
 
-    /// Packets answer as single rays do, on a soup of random triangles seen from random points
-    /// (rays in random, not coherent, directions: the hardest case for a packet's bookkeeping).
-    /// Exact agreement is not promised — the two BVHs' node bounds round differently — but a
-    /// disagreement needs a ray within rounding of a triangle's edge or a node's face.
     /// A point of the unit cube.
     fn unit(rng: &mut Rng) -> Vec3 {
         Vec3::new(
@@ -487,52 +584,100 @@ mod tests {
         )
     }
 
-    #[test]
-    fn packets_answer_as_single_rays() {
-        let mut rng = Rng::new(7);
+    /// A soup of 400 random triangles in [-2.3, 2.3]³.
+    fn soup(rng: &mut Rng) -> Mesh {
         let mut positions = Vec::new();
         let mut triangles = Vec::new();
         for t in 0..400u32 {
-            let centre = unit(&mut rng) * 4.0 - 2.0;
+            let centre = unit(rng) * 4.0 - 2.0;
             for _ in 0..3 {
-                let jitter = unit(&mut rng) - 0.5;
+                let jitter = unit(rng) - 0.5;
                 positions.push(centre + jitter * 0.6);
             }
             triangles.push([3 * t, 3 * t + 1, 3 * t + 2]);
         }
-        let mesh = Mesh {
+        Mesh {
             normals: vec![Vec3::Z; positions.len()],
             positions,
             tangents: None,
             uvs: None,
             triangles,
-        };
-        let tracer = Tracer::new(&mesh);
-        let (mut rays, mut hits, mut differ) = (0usize, 0usize, 0usize);
-        for _ in 0..500 {
-            let origin = Vec3A::from(unit(&mut rng)) * 5.0 - 2.5;
-            let count = 1 + (rng.next_f64() as f32 * 40.0) as usize;
-            let dirs: Vec<Vec3A> = (0..count)
-                .map(|_| {
-                    let z = 2.0 * rng.next_f64() as f32 - 1.0;
-                    let phi = std::f32::consts::TAU * rng.next_f64() as f32;
-                    let r = (1.0 - z * z).max(0.0).sqrt();
-                    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
-                })
-                .collect();
-            let mut out = vec![false; count];
-            tracer.occluded_from(origin, &dirs, &mut out);
-            for (d, &packet) in dirs.iter().zip(&out) {
-                let single = tracer.occluded(origin, *d);
-                rays += 1;
-                hits += single as usize;
-                differ += (single != packet) as usize;
+        }
+    }
+
+    /// Random rays from random points in [-2.5, 2.5]³: (origin, directions) in groups of 1–40.
+    fn rays(rng: &mut Rng) -> Vec<(Vec3A, Vec<Vec3A>)> {
+        (0..500)
+            .map(|_| {
+                let origin = Vec3A::from(unit(rng)) * 5.0 - 2.5;
+                let count = 1 + (rng.next_f64() as f32 * 40.0) as usize;
+                let dirs = (0..count)
+                    .map(|_| {
+                        let z = 2.0 * rng.next_f64() as f32 - 1.0;
+                        let phi = std::f32::consts::TAU * rng.next_f64() as f32;
+                        let r = (1.0 - z * z).max(0.0).sqrt();
+                        Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+                    })
+                    .collect();
+                (origin, dirs)
+            })
+            .collect()
+    }
+
+    /// With each backend, packets answer as single rays do, on a soup of random triangles seen from random points
+    /// (rays in random, not coherent, directions: the hardest case for a packet's bookkeeping).
+    /// Exact agreement is not promised — the two BVHs' node bounds round differently — but a
+    /// disagreement needs a ray within rounding of a triangle's edge or a node's face.
+    #[test]
+    fn packets_answer_as_single_rays() {
+        let mut rng = Rng::new(7);
+        let mesh = soup(&mut rng);
+        let groups = rays(&mut rng);
+        for &backend in Backend::available() {
+            let tracer = Tracer::with_backend(&mesh, backend);
+            assert_eq!(tracer.backend(), backend);
+            let (mut n, mut hits, mut differ) = (0usize, 0usize, 0usize);
+            for (origin, dirs) in &groups {
+                let mut out = vec![false; dirs.len()];
+                tracer.occluded_from(*origin, dirs, &mut out);
+                for (d, &packet) in dirs.iter().zip(&out) {
+                    let single = tracer.occluded(*origin, *d);
+                    n += 1;
+                    hits += single as usize;
+                    differ += (single != packet) as usize;
+                }
+            }
+            assert!(
+                hits > n / 10 && hits < n * 9 / 10,
+                "{backend:?}: {hits} of {n} occluded"
+            );
+            assert!(
+                differ * 20_000 <= n,
+                "{backend:?}: {differ} of {n} rays differ"
+            );
+        }
+    }
+
+    /// Embree (a second implementation: its own BVH and its robust triangle test) answers as
+    /// obvhs does, but for rays within rounding of a triangle's edge.
+    #[cfg(embree)]
+    #[test]
+    fn embree_answers_as_obvhs() {
+        let mut rng = Rng::new(11);
+        let mesh = soup(&mut rng);
+        let obvhs = Tracer::with_backend(&mesh, Backend::Obvhs);
+        let embree = Tracer::with_backend(&mesh, Backend::Embree);
+        assert_eq!(embree.backend(), Backend::Embree);
+        let (mut n, mut hits, mut differ) = (0usize, 0usize, 0usize);
+        for (origin, dirs) in rays(&mut rng) {
+            for d in dirs {
+                let a = obvhs.occluded(origin, d);
+                n += 1;
+                hits += a as usize;
+                differ += (a != embree.occluded(origin, d)) as usize;
             }
         }
-        assert!(
-            hits > rays / 10 && hits < rays * 9 / 10,
-            "{hits} of {rays} occluded"
-        );
-        assert!(differ * 20_000 <= rays, "{differ} of {rays} rays differ");
+        assert!(hits > n / 10 && hits < n * 9 / 10, "{hits} of {n} occluded");
+        assert!(differ * 20_000 <= n, "{differ} of {n} rays differ");
     }
 }

@@ -92,7 +92,7 @@ impl BakeReport<'_> {
             "rays_traced": s.rays_traced, "mean_cut_size": s.mean_cut_size, "max_cut_size": s.max_cut_size,
             "capped_vertices": s.capped_vertices, "seconds": s.seconds, "decision_seconds": s.decision_seconds,
             "rays_per_second": s.rays_traced as f64 / (s.seconds - s.decision_seconds).max(1e-9),
-            "bytes_per_vertex": s.bytes_per_vertex, "decisions": self.header.decisions,
+            "bytes_per_vertex": s.bytes_per_vertex, "tracer": s.tracer, "decisions": self.header.decisions,
             "view": {
                 "camera": self.camera.name, "fit_width": self.fit_size.0, "fit_height": self.fit_size.1,
                 "pixels": c.pixels, "lobes": c.lobes,
@@ -114,9 +114,11 @@ impl BakeReport<'_> {
             lines.push(format!("decision: {what} — {why}"));
         }
         lines.push(format!(
-            "{} vertices, {} rays, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s \
+            "{} vertices, {} rays{}, mean cut {:.1} nodes (max {}, {} capped), {:.0} bytes/vertex, {:.2} s \
              ({:.2} s deciding)",
-            s.vertices, s.rays_traced, s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds,
+            s.vertices, s.rays_traced,
+            if s.tracer.is_empty() { String::new() } else { format!(" (traced with {})", s.tracer) },
+            s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds,
             s.decision_seconds
         ));
         lines.push(format!(

@@ -49,8 +49,16 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
         "decisions",
         "transfer_seconds",
         "bytes_per_vertex",
+        "tracer",
     ] {
         assert!(!first[key].is_null(), "missing key {key}");
+    }
+    // CI installs Embree (.ci/test): there the bake must trace with it.
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        assert_eq!(
+            first["tracer"], "embree",
+            "CI builds with Embree (build.rs)"
+        );
     }
     // The teapot's 529 vertices, plus the midpoints of edges the refinement split (decision (e)).
     let vertices = first["vertices"].as_u64().unwrap();

@@ -1,0 +1,235 @@
+//! Occlusion rays through Intel Embree 3 (Debian's `libembree-dev`), where `build.rs` finds it
+//! (`cfg(embree)`).
+//!
+//! Inputs: the mesh's non-degenerate triangles. Output: [`EmbreeTracer::occluded`], the same any-hit answer as
+//! [`super::tracer::Tracer::occluded`] for a ray from `origin` along `dir`, t in [0, ∞), from
+//! Embree's own BVH and its `rtcOccluded1` (robust triangle test, so a ray through a shared edge
+//! is never let through).
+//!
+//! The binding is the few C entry points it needs, declared here against Embree 3.13's headers
+//! (`/usr/include/embree3`); nothing else of Embree is used.
+//!
+//! Invariants: the scene is committed before any query and never changed after, so queries from any
+//! number of threads are safe (Embree's documented contract for committed scenes); no IO.
+
+use glam::{Vec3, Vec3A};
+use obvhs::triangle::Triangle;
+use std::ffi::{c_char, c_int, c_uint, c_void};
+
+#[repr(C)]
+struct RtcIntersectContext {
+    flags: c_uint,
+    filter: *const c_void,
+    inst_id: [c_uint; 1],
+}
+
+#[repr(C, align(16))]
+struct RtcRay {
+    org: [f32; 3],
+    tnear: f32,
+    dir: [f32; 3],
+    time: f32,
+    tfar: f32,
+    mask: c_uint,
+    id: c_uint,
+    flags: c_uint,
+}
+
+type RtcDevice = *mut c_void;
+type RtcScene = *mut c_void;
+type RtcGeometry = *mut c_void;
+
+const GEOMETRY_TYPE_TRIANGLE: c_uint = 0;
+const BUFFER_TYPE_INDEX: c_uint = 0;
+const BUFFER_TYPE_VERTEX: c_uint = 1;
+const FORMAT_UINT3: c_uint = 0x5003;
+const FORMAT_FLOAT3: c_uint = 0x9003;
+const BUILD_QUALITY_HIGH: c_uint = 2;
+const SCENE_FLAG_ROBUST: c_uint = 1 << 2;
+const INVALID_GEOMETRY_ID: c_uint = u32::MAX;
+
+#[link(name = "embree3")]
+unsafe extern "C" {
+    fn rtcNewDevice(config: *const c_char) -> RtcDevice;
+    fn rtcReleaseDevice(device: RtcDevice);
+    fn rtcGetDeviceError(device: RtcDevice) -> c_int;
+    fn rtcNewScene(device: RtcDevice) -> RtcScene;
+    fn rtcReleaseScene(scene: RtcScene);
+    fn rtcSetSceneBuildQuality(scene: RtcScene, quality: c_uint);
+    fn rtcSetSceneFlags(scene: RtcScene, flags: c_uint);
+    fn rtcCommitScene(scene: RtcScene);
+    fn rtcNewGeometry(device: RtcDevice, kind: c_uint) -> RtcGeometry;
+    fn rtcReleaseGeometry(geometry: RtcGeometry);
+    fn rtcSetNewGeometryBuffer(
+        geometry: RtcGeometry,
+        kind: c_uint,
+        slot: c_uint,
+        format: c_uint,
+        byte_stride: usize,
+        count: usize,
+    ) -> *mut c_void;
+    fn rtcCommitGeometry(geometry: RtcGeometry);
+    fn rtcAttachGeometry(scene: RtcScene, geometry: RtcGeometry) -> c_uint;
+    fn rtcOccluded1(scene: RtcScene, context: *mut RtcIntersectContext, ray: *mut RtcRay);
+    fn rtcOccluded8(
+        valid: *const c_int,
+        scene: RtcScene,
+        context: *mut RtcIntersectContext,
+        ray: *mut RtcRay8,
+    );
+}
+
+#[repr(C, align(32))]
+struct RtcRay8 {
+    org: [[f32; 8]; 3],
+    tnear: [f32; 8],
+    dir: [[f32; 8]; 3],
+    time: [f32; 8],
+    tfar: [f32; 8],
+    mask: [c_uint; 8],
+    id: [c_uint; 8],
+    flags: [c_uint; 8],
+}
+
+#[repr(C, align(32))]
+struct Valid8([c_int; 8]);
+
+/// A committed Embree scene of the mesh's triangles.
+pub struct EmbreeTracer {
+    device: RtcDevice,
+    scene: RtcScene,
+}
+
+// SAFETY: the scene is committed in `new` and never modified; Embree allows concurrent queries on
+// a committed scene, and the device and scene are released once, in `drop`.
+unsafe impl Send for EmbreeTracer {}
+unsafe impl Sync for EmbreeTracer {}
+
+/// Embree could not build the scene (out of memory, or an unsupported CPU).
+#[derive(Debug, thiserror::Error)]
+#[error("Embree failed to build the scene (error code {0})")]
+pub struct EmbreeError(i32);
+
+impl EmbreeTracer {
+    /// Builds Embree's BVH over the triangles (high build quality, robust traversal). The
+    /// caller leaves out degenerate triangles ([`super::tracer::Tracer`] does).
+    pub fn new(triangles: &[Triangle]) -> Result<Self, EmbreeError> {
+        // SAFETY: every pointer passed below comes from Embree itself, checked non-null, and the
+        // buffers are written within the sizes asked for.
+        unsafe {
+            let device = rtcNewDevice(c"threads=0".as_ptr());
+            if device.is_null() {
+                return Err(EmbreeError(-1));
+            }
+            let scene = rtcNewScene(device);
+            let this = Self { device, scene };
+            rtcSetSceneBuildQuality(scene, BUILD_QUALITY_HIGH);
+            rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
+            if !triangles.is_empty() {
+                let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
+                let n = triangles.len();
+                let vertices = rtcSetNewGeometryBuffer(
+                    geometry,
+                    BUFFER_TYPE_VERTEX,
+                    0,
+                    FORMAT_FLOAT3,
+                    12,
+                    3 * n,
+                ) as *mut f32;
+                let indices =
+                    rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n)
+                        as *mut u32;
+                if vertices.is_null() || indices.is_null() {
+                    rtcReleaseGeometry(geometry);
+                    return Err(EmbreeError(rtcGetDeviceError(device)));
+                }
+                let vertices = std::slice::from_raw_parts_mut(vertices, 9 * n);
+                let indices = std::slice::from_raw_parts_mut(indices, 3 * n);
+                for (k, tri) in triangles.iter().enumerate() {
+                    for (c, p) in [tri.v0, tri.v1, tri.v2].iter().enumerate() {
+                        vertices[9 * k + 3 * c..9 * k + 3 * c + 3]
+                            .copy_from_slice(&Vec3::from(*p).to_array());
+                        indices[3 * k + c] = (3 * k + c) as u32;
+                    }
+                }
+                rtcCommitGeometry(geometry);
+                rtcAttachGeometry(scene, geometry);
+                rtcReleaseGeometry(geometry);
+            }
+            rtcCommitScene(scene);
+            match rtcGetDeviceError(device) {
+                0 => Ok(this),
+                e => Err(EmbreeError(e)),
+            }
+        }
+    }
+
+    /// Any hit along the ray (origin, dir) for t in [0, ∞).
+    #[inline]
+    pub fn occluded(&self, origin: Vec3A, dir: Vec3A) -> bool {
+        let mut context = RtcIntersectContext {
+            flags: 0,
+            filter: std::ptr::null(),
+            inst_id: [INVALID_GEOMETRY_ID],
+        };
+        let mut ray = RtcRay {
+            org: origin.to_array(),
+            tnear: 0.0,
+            dir: dir.to_array(),
+            time: 0.0,
+            tfar: f32::INFINITY,
+            mask: u32::MAX,
+            id: 0,
+            flags: 0,
+        };
+        // SAFETY: the scene is committed; context and ray are valid for the call.
+        unsafe { rtcOccluded1(self.scene, &mut context, &mut ray) };
+        ray.tfar == f32::NEG_INFINITY
+    }
+}
+
+impl EmbreeTracer {
+    /// `out[i]` = [`EmbreeTracer::occluded`] of the ray from `origin` along `dirs[i]`, traced as
+    /// packets of 8 (`rtcOccluded8`, coherent).
+    pub fn occluded_from(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        let mut context = RtcIntersectContext {
+            flags: 1,
+            filter: std::ptr::null(),
+            inst_id: [INVALID_GEOMETRY_ID],
+        };
+        for (d, o) in dirs.chunks(8).zip(out.chunks_mut(8)) {
+            let mut valid = Valid8([0; 8]);
+            let mut ray = RtcRay8 {
+                org: [[origin.x; 8], [origin.y; 8], [origin.z; 8]],
+                tnear: [0.0; 8],
+                dir: [[0.0; 8]; 3],
+                time: [0.0; 8],
+                tfar: [f32::INFINITY; 8],
+                mask: [u32::MAX; 8],
+                id: [0; 8],
+                flags: [0; 8],
+            };
+            for (lane, dir) in d.iter().enumerate() {
+                valid.0[lane] = -1;
+                ray.dir[0][lane] = dir.x;
+                ray.dir[1][lane] = dir.y;
+                ray.dir[2][lane] = dir.z;
+            }
+            // SAFETY: the scene is committed; valid and ray are aligned and valid for the call.
+            unsafe { rtcOccluded8(valid.0.as_ptr(), self.scene, &mut context, &mut ray) };
+            for (lane, o) in o.iter_mut().enumerate() {
+                *o = ray.tfar[lane] == f32::NEG_INFINITY;
+            }
+        }
+    }
+}
+
+impl Drop for EmbreeTracer {
+    fn drop(&mut self) {
+        // SAFETY: released once; no query can be in flight while `self` is being dropped.
+        unsafe {
+            rtcReleaseScene(self.scene);
+            rtcReleaseDevice(self.device);
+        }
+    }
+}
