@@ -34,7 +34,10 @@
 //!    light sums to at most β of the vertex's: the rays go to the shadow edges of the lights, not
 //!    to those across parts of the map that are dark under every rotation (dragon_100k under
 //!    studio_1k, 11.25° cells refined three times: 109 M → 34 M rays, the irradiance 0.18–1.26 % →
-//!    0.27–1.29 % of a ray per direction's over four rotations).
+//!    0.27–1.29 % of a ray per direction's over four rotations). Each pass after the first
+//!    rebuilds only the subtrees that hold a cell the last level marked, and takes the rest of the
+//!    cut from the pass before (memos per node of at least a cell's size; the same cut as
+//!    rebuilding it whole, [`CutSettings::rebuild_whole_passes`], tested).
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
@@ -93,6 +96,12 @@ pub struct CutSettings {
     /// as without a gate).
     #[serde(default)]
     pub boundary_budget: f64,
+    /// Each pass of boundary refinement rebuilds the whole cut, instead of only the subtrees where
+    /// the last level marked cells (the rest taken from the pass before, [`CutScratch`]'s memos).
+    /// The cut is the same either way: off by default; on, it is the reference the memos are
+    /// tested against.
+    #[serde(default)]
+    pub rebuild_whole_passes: bool,
 }
 
 impl Default for CutSettings {
@@ -106,6 +115,7 @@ impl Default for CutSettings {
             boundary_levels: 0,
             boundary_budget: 0.002,
             cone_leaves: 0,
+            rebuild_whole_passes: false,
         }
     }
 }
@@ -144,7 +154,28 @@ pub struct CutScratch {
     /// kept for the passes that boundary refinement and the cut cap make (stamped as `stamp`).
     weight: Vec<f64>,
     weight_stamp: Vec<u32>,
+    /// Per tree node of at least `cell_leaves` leaves, its part of the cut as the last pass that
+    /// built it left it ([`Memo`]), for the passes of boundary refinement, which rebuild only the
+    /// subtrees where cells were marked (stamped as `stamp`; 0 where a merge above dropped it).
+    memo: Vec<Memo>,
+    memo_stamp: Vec<u32>,
+    /// Every pass's finished cut of the current vertex, one after the other: what [`Memo`]
+    /// ranges index.
+    arena: Vec<(u32, f32)>,
+    /// The current pass's memos, in the order their nodes finished: (node, range in the pass's
+    /// output, sums).
+    recorded: Vec<(u32, u32, u32, Sums)>,
+    /// Leaf ranges of the cells the last [`mark_boundaries`] marked, in leaf order.
+    marked: Vec<(u32, u32)>,
     generation: u32,
+}
+
+/// A node's part of a cut: a range of [`CutScratch::arena`] and the node's [`Sums`].
+#[derive(Debug, Clone, Copy, Default)]
+struct Memo {
+    start: u32,
+    end: u32,
+    sums: Sums,
 }
 
 impl CutScratch {
@@ -161,6 +192,11 @@ impl CutScratch {
             gated: Vec::new(),
             weight: Vec::new(),
             weight_stamp: Vec::new(),
+            memo: Vec::new(),
+            memo_stamp: Vec::new(),
+            arena: Vec::new(),
+            recorded: Vec::new(),
+            marked: Vec::new(),
             generation: 0,
         }
     }
@@ -171,9 +207,12 @@ impl CutScratch {
             self.stamp.iter_mut().for_each(|s| *s = 0);
             self.refine.iter_mut().for_each(|s| *s = 0);
             self.weight_stamp.iter_mut().for_each(|s| *s = 0);
+            self.memo_stamp.iter_mut().for_each(|s| *s = 0);
             self.generation = 1;
         }
         self.traced.clear();
+        self.arena.clear();
+        self.recorded.clear();
     }
 }
 
@@ -200,6 +239,9 @@ struct Ctx<'a> {
     /// Whether cone tests may be used (false on redo passes: their answers are cached in `free`).
     free: Vec<u32>,
     redo: bool,
+    /// Whether this pass may take a subtree's part of the cut from its memo (the passes of
+    /// boundary refinement; not the cut cap's, which change ε) and records memos.
+    memo: bool,
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -427,7 +469,43 @@ fn mark_boundaries(
             marked -= 1;
         }
     }
+    // The marked cells' leaf ranges, for the next pass's memos.
+    scratch.marked.clear();
+    for i in from..scratch.traced.len() {
+        let (k, c) = scratch.traced[i];
+        if c as usize == cell && scratch.refine[key(k)] == generation {
+            let node = &tree.nodes()[k as usize];
+            scratch.marked.push((node.first, node.first + node.count));
+        }
+    }
+    scratch.marked.sort_unstable();
     marked > 0
+}
+
+/// Whether a cell marked by the last [`mark_boundaries`] meets the leaves [first, end).
+fn marked_within(marked: &[(u32, u32)], first: u32, end: u32) -> bool {
+    let i = marked.partition_point(|&(_, e)| e <= first);
+    marked.get(i).is_some_and(|&(s, _)| s < end)
+}
+
+/// Ends a pass: its surviving memos ([`CutScratch::recorded`]) now index its cut, appended to the
+/// arena.
+fn finish_pass(ctx: &mut Ctx, entries: &[(u32, f32)]) {
+    if !ctx.memo {
+        return;
+    }
+    let s = &mut *ctx.scratch;
+    let base = s.arena.len() as u32;
+    for &(k, start, end, sums) in &s.recorded {
+        s.memo[k as usize] = Memo {
+            start: base + start,
+            end: base + end,
+            sums,
+        };
+        s.memo_stamp[k as usize] = s.generation;
+    }
+    s.recorded.clear();
+    s.arena.extend_from_slice(entries);
 }
 
 /// (Σ Ω c, Σ Ω c V, error bound Σ Ω c |V_i − V_node|) of a subtree.
@@ -451,6 +529,13 @@ pub fn vertex_cut(
     if scratch.weight_stamp.len() < tree.nodes().len() {
         scratch.weight.resize(tree.nodes().len(), 0.0);
         scratch.weight_stamp.resize(tree.nodes().len(), 0);
+    }
+    if settings.boundary_levels > 0
+        && !settings.rebuild_whole_passes
+        && scratch.memo_stamp.len() < tree.nodes().len()
+    {
+        scratch.memo.resize(tree.nodes().len(), Memo::default());
+        scratch.memo_stamp.resize(tree.nodes().len(), 0);
     }
     for (w, &[known, visible]) in prior.agreed.iter().enumerate() {
         let mut rest = known;
@@ -488,10 +573,12 @@ pub fn vertex_cut(
         rays: 0,
         free: Vec::new(),
         redo: false,
+        memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
     };
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
     build(&mut ctx, 0, false, top, &mut entries);
+    finish_pass(&mut ctx, &entries);
     // Boundary refinement: cells beside a traced cell of the other visibility are traced again as
     // four cells half as wide, then the cut is rebuilt (cached rays and cone answers are reused).
     let (mut cell, mut from) = (top, 0);
@@ -503,8 +590,10 @@ pub fn vertex_cut(
         ctx.redo = true;
         entries.clear();
         build(&mut ctx, 0, false, top, &mut entries);
+        finish_pass(&mut ctx, &entries);
         cell /= 4;
     }
+    ctx.memo = false;
     while entries.len() > settings.max_cut.max(1) && ctx.epsilon < 1.0 {
         ctx.epsilon = if ctx.epsilon > 0.0 {
             ctx.epsilon * 2.0
@@ -610,6 +699,21 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         out.push((k as u32, v as f32));
         return (w, w * v, 0.0);
     }
+    // A boundary pass rebuilds only the subtrees where the last level marked cells: elsewhere the
+    // cut is what the pass before built (same cells, rays, cone answers and ε).
+    let memo = ctx.memo && node.count as usize >= ctx.cell_leaves;
+    if memo && ctx.redo {
+        let s = &mut *ctx.scratch;
+        if s.memo_stamp[k] == s.generation
+            && !marked_within(&s.marked, node.first, node.first + node.count)
+        {
+            let m = s.memo[k];
+            let start = out.len() as u32;
+            out.extend_from_slice(&s.arena[m.start as usize..m.end as usize]);
+            s.recorded.push((k as u32, start, out.len() as u32, m.sums));
+            return m.sums;
+        }
+    }
     // Cone tests above the traced nodes, and inside them down to `cone_leaves`.
     let cone = !known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves);
     if cone {
@@ -676,6 +780,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     let w = wl + wr;
     if w <= 0.0 {
         out.truncate(start);
+        forget_memos(ctx, start);
         return (0.0, 0.0, 0.0);
     }
     let v_parent = (vl + vr) / w;
@@ -683,9 +788,30 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     let mergeable = mid - start <= 1 && out.len() - mid <= 1;
     if mergeable && dev <= ctx.epsilon * node.solid_angle {
         out.truncate(start);
+        forget_memos(ctx, start);
         out.push((k as u32, v_parent as f32));
     }
-    (w, vl + vr, dev)
+    let sums = (w, vl + vr, dev);
+    if memo {
+        let range = (start as u32, out.len() as u32);
+        ctx.scratch
+            .recorded
+            .push((k as u32, range.0, range.1, sums));
+    }
+    sums
+}
+
+/// A merge replaced the pass's output from `start` on: the memos of the subtrees it held (the
+/// last ones recorded) no longer index anything, and any older memo of theirs may be stale.
+fn forget_memos(ctx: &mut Ctx, start: usize) {
+    let s = &mut *ctx.scratch;
+    while let Some(&(k, from, _, _)) = s.recorded.last() {
+        if (from as usize) < start {
+            break;
+        }
+        s.memo_stamp[k as usize] = 0;
+        s.recorded.pop();
+    }
 }
 
 /// Traces, in packets ([`Tracer::occluded_from`]), every visibility cell under node `k` that

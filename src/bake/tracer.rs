@@ -137,18 +137,26 @@ impl Tracer {
     }
 
     fn build(mesh: &Mesh, backend: Backend, params: BvhBuildParams) -> Self {
-        let triangles: Vec<Triangle> = mesh
+        let kept: Vec<[u32; 3]> = mesh
             .triangles
             .iter()
-            .filter_map(|t| {
+            .copied()
+            .filter(|t| {
                 let [a, b, c] =
                     t.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
                 let area2 = (b - a).cross(c - a).length();
-                (area2.is_finite() && area2 > 0.0).then(|| Triangle {
+                area2.is_finite() && area2 > 0.0
+            })
+            .collect();
+        let triangles: Vec<Triangle> = kept
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                Triangle {
                     v0: a.into(),
                     v1: b.into(),
                     v2: c.into(),
-                })
+                }
             })
             .collect();
         let spheres: Vec<Sphere> = triangles
@@ -177,7 +185,7 @@ impl Tracer {
         };
         #[cfg(embree)]
         let embree = (backend == Backend::Embree)
-            .then(|| super::embree::EmbreeTracer::new(&triangles).ok())
+            .then(|| super::embree::EmbreeTracer::new(&mesh.positions, &kept).ok())
             .flatten();
         #[cfg(not(embree))]
         let _ = backend;

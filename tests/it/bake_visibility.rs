@@ -701,3 +701,47 @@ fn cone_tests_inside_traced_nodes_keep_the_cut_and_save_rays() {
     );
     assert!(tested.stats.rays_traced * 10 < all.stats.rays_traced * 9);
 }
+
+/// Boundary refinement's passes rebuild only the subtrees where the last level marked cells and
+/// take the rest of the cut from the pass before: every vertex's cut, node for node and value for
+/// value, and the rays are those of rebuilding the whole cut in every pass — the bunny under the
+/// studio map (three levels under the light budget, decided) and the teapot under a uniform sky
+/// (two levels at every shadow edge).
+#[test]
+fn boundary_passes_from_memos_give_the_cuts_of_whole_rebuilds() {
+    let bunny = glint::scene::import(&common::assets().join("glb/bunny.glb")).unwrap();
+    let studio = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let teapot = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let sky = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
+    let mut uniform = settings(64, 0.02);
+    uniform.cell_deg = Some(5.625);
+    uniform.boundary_levels = Some(2);
+    uniform.cut.boundary_budget = 0.0;
+    for (scene, env, base) in [
+        (&bunny, &studio, BakeSettings::default()),
+        (&teapot, &sky, uniform),
+    ] {
+        let bake = |whole: bool| {
+            let mut s = base;
+            s.cut.rebuild_whole_passes = whole;
+            s.refine.interpolate = false;
+            let baker = Baker::new(scene, env, s).unwrap();
+            assert!(baker.settings.cut.boundary_levels >= 2);
+            baker.bake_all(None, &|_| {})
+        };
+        let (memo, whole) = (bake(false), bake(true));
+        assert_eq!(memo.stats.rays_traced, whole.stats.rays_traced);
+        let differ = (0..memo.cuts.vertex_count())
+            .filter(|&v| {
+                memo.cuts.cut(v).collect::<Vec<_>>() != whole.cuts.cut(v).collect::<Vec<_>>()
+            })
+            .count();
+        assert_eq!(differ, 0, "{differ} vertices' cuts differ");
+        println!(
+            "{} vertices, {} rays, mean cut {:.1}: the same cuts",
+            memo.cuts.vertex_count(),
+            memo.stats.rays_traced,
+            memo.stats.mean_cut_size
+        );
+    }
+}
