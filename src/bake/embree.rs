@@ -118,7 +118,12 @@ impl EmbreeTracer {
         // SAFETY: every pointer passed below comes from Embree itself, checked non-null, and the
         // buffers are written within the sizes asked for.
         unsafe {
-            let device = rtcNewDevice(c"threads=0".as_ptr());
+            // Embree builds its BVH on as many threads as the bake's other stages run (rayon's
+            // pool: `RAYON_NUM_THREADS` where a scheduler grants a share of a node's cores).
+            let config =
+                std::ffi::CString::new(format!("threads={}", rayon::current_num_threads()))
+                    .expect("no NUL in a formatted number");
+            let device = rtcNewDevice(config.as_ptr());
             if device.is_null() {
                 return Err(EmbreeError(-1));
             }
