@@ -2,7 +2,7 @@
 //!
 //! Where `libembree3.so` is found, the crate is built with `cfg(embree)` and links it; elsewhere it
 //! builds without it and the rays go through obvhs (`src/bake/tracer.rs`), the same answers more
-//! slowly. `GLINT_EMBREE=0` builds without Embree even where it is installed; `EMBREE_DIR` names a
+//! slowly. Its headers' configuration must match what `src/bake/embree.rs` declares. `GLINT_EMBREE=0` builds without Embree even where it is installed; `EMBREE_DIR` names a
 //! folder to look in first (its `lib/`). After installing or removing Embree, `cargo clean -p
 //! glint` makes the next build look again.
 
@@ -33,14 +33,47 @@ fn main() {
         dirs.push(PathBuf::from(d));
     }
     let found = dirs.iter().find(|d| d.join("libembree3.so").exists());
-    match found {
-        Some(dir) => {
+    let Some(dir) = found else {
+        println!(
+            "cargo:warning=Embree 3 not found (apt-get install libembree-dev): the bake's rays \
+             go through obvhs, 2-3x slower"
+        );
+        return;
+    };
+    // src/bake/embree.rs declares RTCIntersectContext as Embree 3 lays it out with one instance
+    // level and no minimum width (Debian's and Intel's default builds): check the installed
+    // configuration before linking.
+    let config = ["/usr/include", "/usr/local/include"]
+        .iter()
+        .map(PathBuf::from)
+        .chain(
+            std::env::var("EMBREE_DIR")
+                .ok()
+                .map(|r| PathBuf::from(r).join("include")),
+        )
+        .map(|d| d.join("embree3/rtcore_config.h"))
+        .find_map(|p| std::fs::read_to_string(p).ok());
+    let defines = |text: &str, name: &str, value: &str| {
+        text.lines().any(|l| {
+            let mut words = l.split_whitespace();
+            words.next() == Some("#define")
+                && words.next() == Some(name)
+                && words.next() == Some(value)
+        })
+    };
+    match config {
+        Some(text)
+            if defines(&text, "RTC_VERSION_MAJOR", "3")
+                && defines(&text, "RTC_MAX_INSTANCE_LEVEL_COUNT", "1")
+                && defines(&text, "EMBREE_MIN_WIDTH", "0") =>
+        {
             println!("cargo:rustc-link-search=native={}", dir.display());
             println!("cargo:rustc-cfg=embree");
         }
-        None => println!(
-            "cargo:warning=Embree 3 not found (apt-get install libembree-dev): the bake's rays \
-             go through obvhs, 2-3x slower"
+        _ => println!(
+            "cargo:warning=Embree 3 found without the headers glint was written against \
+             (embree3/rtcore_config.h: one instance level, no minimum width): the bake's rays go \
+             through obvhs"
         ),
     }
 }
