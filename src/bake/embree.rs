@@ -126,9 +126,10 @@ impl EmbreeTracer {
         unsafe {
             // Embree builds its BVH on as many threads as the bake's other stages run (rayon's
             // pool: `RAYON_NUM_THREADS` where a scheduler grants a share of a node's cores).
+            // (A formatted number holds no NUL; were it to, Embree's defaults would do.)
             let config =
                 std::ffi::CString::new(format!("threads={}", rayon::current_num_threads()))
-                    .expect("no NUL in a formatted number");
+                    .unwrap_or_default();
             let device = rtcNewDevice(config.as_ptr());
             if device.is_null() {
                 return Err(EmbreeError(-1));

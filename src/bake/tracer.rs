@@ -95,6 +95,29 @@ enum Rays {
     Embree(super::embree::EmbreeTracer),
 }
 
+/// obvhs's CWBVH over the triangles, and the triangles in its primitive order ready to intersect:
+/// single rays read them without an indirection (computing them per test, or reading them through
+/// an index into the BVH2's order, made single rays 7–11 % slower).
+fn obvhs_rays(triangles: &[Triangle], params: BvhBuildParams, build_time: &mut Duration) -> Rays {
+    let cwbvh = if triangles.is_empty() {
+        CwBvh::default()
+    } else {
+        obvhs::cwbvh::builder::build_cwbvh_from_tris(triangles, params, build_time)
+    };
+    let rt_triangles = cwbvh
+        .primitive_indices
+        .iter()
+        .map(|&i| {
+            let t = &triangles[i as usize];
+            RtTriangle::new(t.v0, t.v1, t.v2)
+        })
+        .collect();
+    Rays::Obvhs {
+        rt_triangles,
+        cwbvh,
+    }
+}
+
 /// Acceleration structures over the mesh.
 pub struct Tracer {
     /// In BVH2 primitive order (a BVH2 leaf's primitives are a range of it), with their bounding
@@ -186,39 +209,14 @@ impl Tracer {
         #[cfg(embree)]
         let embree = (backend == Backend::Embree)
             .then(|| super::embree::EmbreeTracer::new(&mesh.positions, &kept).ok())
-            .flatten();
+            .flatten()
+            .map(Rays::Embree);
         #[cfg(not(embree))]
-        let _ = backend;
-        let rays = match () {
-            #[cfg(embree)]
-            () if embree.is_some() => Rays::Embree(embree.expect("checked just above")),
-            () => {
-                let cwbvh = if triangles.is_empty() {
-                    CwBvh::default()
-                } else {
-                    obvhs::cwbvh::builder::build_cwbvh_from_tris(
-                        &triangles,
-                        params,
-                        &mut build_time,
-                    )
-                };
-                // The CWBVH's primitives in its own order, ready to intersect: single rays read
-                // them without an indirection (computing them per test, or reading them through
-                // an index into the BVH2's order, made single rays 7–11 % slower).
-                let rt_triangles = cwbvh
-                    .primitive_indices
-                    .iter()
-                    .map(|&i| {
-                        let t = &triangles[i as usize];
-                        RtTriangle::new(t.v0, t.v1, t.v2)
-                    })
-                    .collect();
-                Rays::Obvhs {
-                    rt_triangles,
-                    cwbvh,
-                }
-            }
+        let embree: Option<Rays> = {
+            let _ = backend;
+            None
         };
+        let rays = embree.unwrap_or_else(|| obvhs_rays(&triangles, params, &mut build_time));
         // BVH2 order from here on: the cone test and the packets read a leaf's range directly.
         let (triangles, spheres): (Vec<Triangle>, Vec<Sphere>) = bvh2
             .primitive_indices
