@@ -6,9 +6,16 @@
 //! default view) and one sharp ring lobe along the normal (λ = 81, ρd = 0.05). Each is fitted with
 //! uniform weighting (no scene) and with the scene's weighting: the bunny under studio_1k seen
 //! from the default camera (demo) and from the orbit 20°, 15°, 2.5 radii (sharp lobe).
+//!
+//! `cargo bench --bench fallback -- floor`: instead, the glTF model's floor under the scene's
+//! weighting (`layered_fallback::model_floor`: 32 random starts over every isotropic parameter,
+//! then a coloured specular colour), beside the exported fit, for the demo material, the sharp
+//! key-light highlight (samples/strokes/bunny-key-light.json fitted on the same bunny, default
+//! view) and the sharp lobe; with the clearcoat's roughness floored as exported and with it free
+//! down to 0.02.
 
 use glint::export::{
-    layered_fallback::{Objective, fit_gltf, fit_preview},
+    layered_fallback::{MIN_COAT_ROUGHNESS, Objective, fit_gltf, fit_preview, model_floor},
     material_fallback, scene_camera, scene_environment, scene_mesh,
 };
 use glint::render::table::PhPyramid;
@@ -37,6 +44,31 @@ fn time<T>(mut f: impl FnMut() -> T) -> (f64, T) {
     (median(times), out.expect("three runs"))
 }
 
+/// The material's lobes and its p(h) table at the export's default resolution.
+fn table_of(material: &glint::fit::material::Material) -> (glint::sphere::LobeSet, PhPyramid) {
+    let lobes = material.lobes().expect("a valid layout");
+    let coefficients = [
+        material.coefficients[0].as_slice(),
+        material.coefficients[1].as_slice(),
+        material.coefficients[2].as_slice(),
+    ];
+    let table = PhPyramid::build_unfiltered(&lobes, coefficients, 512);
+    (lobes, table)
+}
+
+/// The case's mesh as the export describes it, seen from `camera` under the case's map.
+fn scene_for(
+    c: &render_cases::Case,
+    camera: &glint::scene::Camera,
+    w: u32,
+    h: u32,
+) -> glint_exporters::SceneMesh {
+    let mut mesh = scene_mesh(&c.scene.mesh, c.tangents.as_deref());
+    mesh.camera = Some(scene_camera(camera, w, h));
+    mesh.environment = Some(scene_environment(&c.env, 0.0));
+    mesh
+}
+
 fn main() {
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let c = render_cases::case_at(
@@ -49,22 +81,49 @@ fn main() {
         .expect("the default view")
         .0;
     let orbit = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
+    if std::env::args().any(|a| a == "floor") {
+        let key_light =
+            render_cases::fitted_with(&c, include_str!("../samples/strokes/bunny-key-light.json"));
+        let materials = [
+            ("demo", render_cases::fitted(&c), default_camera.clone()),
+            ("key light", key_light, default_camera),
+            ("sharp lobe", render_cases::one_sharp_lobe(), orbit),
+        ];
+        println!(
+            "| material | exported glTF fit | floor, coat roughness ≥ {MIN_COAT_ROUGHNESS} | with a coloured specular | floor, coat roughness ≥ 0.02 | floor's parameters (coat ≥ {MIN_COAT_ROUGHNESS}) | seconds |"
+        );
+        println!("|---|---|---|---|---|---|---|");
+        for (name, material, camera) in materials {
+            let (lobes, table) = table_of(&material);
+            let one = material_fallback(&material, &lobes, &table);
+            let mesh = scene_for(&c, &camera, w, h);
+            let objective = Objective::new(&table, material.rho_d, material.f0, Some(&mesh));
+            let gltf = fit_gltf(&objective, &one.fallback);
+            let t = Instant::now();
+            let floor = model_floor(&objective, 32, 7, MIN_COAT_ROUGHNESS);
+            let secs = t.elapsed().as_secs_f64();
+            let free = model_floor(&objective, 32, 7, 0.02);
+            let pct =
+                |e: (f64, f64)| format!("{:.2} % (uniform {:.1} %)", e.0 * 100.0, e.1 * 100.0);
+            println!(
+                "| {name} | {} | {} | {} | {} | {:.3?} | {secs:.1} |",
+                pct((gltf.relative_error, gltf.uniform_relative_error)),
+                pct(floor.grey),
+                pct(floor.coloured_specular),
+                pct(free.grey),
+                floor.params,
+            );
+        }
+        return;
+    }
     let materials = [
         ("demo", render_cases::fitted(&c), default_camera),
         ("sharp lobe", render_cases::one_sharp_lobe(), orbit),
     ];
     for (name, material, camera) in materials {
-        let lobes = material.lobes().expect("a valid layout");
-        let coefficients = [
-            material.coefficients[0].as_slice(),
-            material.coefficients[1].as_slice(),
-            material.coefficients[2].as_slice(),
-        ];
-        let table = PhPyramid::build_unfiltered(&lobes, coefficients, 512);
+        let (lobes, table) = table_of(&material);
         let (t_one, one) = time(|| material_fallback(&material, &lobes, &table));
-        let mut mesh = scene_mesh(&c.scene.mesh, c.tangents.as_deref());
-        mesh.camera = Some(scene_camera(&camera, w, h));
-        mesh.environment = Some(scene_environment(&c.env, 0.0));
+        let mesh = scene_for(&c, &camera, w, h);
         for scene in [None, Some(&mesh)] {
             let (t_sets, objective) =
                 time(|| Objective::new(&table, material.rho_d, material.f0, scene));

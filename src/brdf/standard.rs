@@ -92,36 +92,74 @@ pub fn ggx_dv_anisotropic(
 
 /// `KHR_materials_sheen`'s "Charlie" distribution (Conty & Kulla 2017), α = sheenRoughness.
 pub fn charlie_d(alpha: f64, nh: f64) -> f64 {
-    let inv = 1.0 / alpha.max(1e-3);
-    let sin2 = (1.0 - nh * nh).max(0.0);
-    (2.0 + inv) * sin2.powf(0.5 * inv) / (2.0 * PI)
+    SheenLobe::new(alpha).d(nh)
 }
 
-/// The sheen visibility's Λ (the extension's fitted curve).
-fn charlie_lambda(cos_theta: f64, alpha: f64) -> f64 {
-    let l = |x: f64| {
+/// The sheen BRDF without its colour: D_Charlie · V_Charlie (the extension's F = 1).
+pub fn sheen_brdf(alpha: f64, nl: f64, nv: f64, nh: f64) -> f64 {
+    SheenLobe::new(alpha).eval(nl, nv, nh)
+}
+
+/// The sheen lobe of one roughness, with what depends on the roughness alone worked out once:
+/// [`sheen_brdf`] at many pairs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SheenLobe {
+    /// 1/α, and D's normalisation (2 + 1/α)/2π.
+    inv: f64,
+    norm: f64,
+    /// The coefficients of the extension's fitted Λ curve at α, and its value at 0.5.
+    curve: [f64; 5],
+    l_half: f64,
+}
+
+impl SheenLobe {
+    pub fn new(alpha: f64) -> Self {
+        let inv = 1.0 / alpha.max(1e-3);
         let t = (1.0 - alpha) * (1.0 - alpha);
         let mix = |a: f64, b: f64| a + (b - a) * t;
-        let (a, b, c, d, e) = (
+        let curve = [
             mix(21.5473, 25.3245),
             mix(3.82987, 3.32435),
             mix(0.19823, 0.16801),
             mix(-1.97760, -1.27393),
             mix(-4.32054, -4.85967),
-        );
-        a / (1.0 + b * x.powf(c)) + d * x + e
-    };
-    if cos_theta.abs() < 0.5 {
-        l(cos_theta).exp()
-    } else {
-        (2.0 * l(0.5) - l(1.0 - cos_theta)).exp()
+        ];
+        let mut lobe = Self {
+            inv,
+            norm: (2.0 + inv) / (2.0 * PI),
+            curve,
+            l_half: 0.0,
+        };
+        lobe.l_half = lobe.l(0.5);
+        lobe
     }
-}
 
-/// The sheen BRDF without its colour: D_Charlie · V_Charlie (the extension's F = 1).
-pub fn sheen_brdf(alpha: f64, nl: f64, nv: f64, nh: f64) -> f64 {
-    let v = 1.0 / ((1.0 + charlie_lambda(nv, alpha) + charlie_lambda(nl, alpha)) * (4.0 * nv * nl));
-    charlie_d(alpha, nh) * v
+    /// The fitted curve L(x).
+    fn l(&self, x: f64) -> f64 {
+        let [a, b, c, d, e] = self.curve;
+        a / (1.0 + b * x.powf(c)) + d * x + e
+    }
+
+    /// The sheen visibility's Λ (the extension's fitted curve).
+    fn lambda(&self, cos_theta: f64) -> f64 {
+        if cos_theta.abs() < 0.5 {
+            self.l(cos_theta).exp()
+        } else {
+            (2.0 * self.l_half - self.l(1.0 - cos_theta)).exp()
+        }
+    }
+
+    /// D_Charlie.
+    pub fn d(&self, nh: f64) -> f64 {
+        let sin2 = (1.0 - nh * nh).max(0.0);
+        self.norm * sin2.powf(0.5 * self.inv)
+    }
+
+    /// D_Charlie · V_Charlie.
+    pub fn eval(&self, nl: f64, nv: f64, nh: f64) -> f64 {
+        let v = 1.0 / ((1.0 + self.lambda(nv) + self.lambda(nl)) * (4.0 * nv * nl));
+        self.d(nh) * v
+    }
 }
 
 /// The sheen lobe's directional albedo E(cos θo) = ∫ f_sheen(wi, wo) cos θi dwi by an `nt` × `np`
@@ -185,20 +223,39 @@ impl GltfParams {
     /// sheen·D_C·V_C + base·min(1 − sheen·E(n·v), 1 − sheen·E(n·l)); coated = mix(sheened,
     /// DV_coat, clearcoat·(0.04 + 0.96(1 − n·v)⁵)).
     pub fn parts(&self, wi: DVec3, wo: DVec3) -> (f64, f64) {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return (0.0, 0.0);
-        }
-        let Some(h) = (wi + wo).try_normalize() else {
+        let Some(g) = PairGeometry::new(wi, wo) else {
             return (0.0, 0.0);
         };
-        let (nl, nv, nh, vh) = (wi.z, wo.z, h.z.max(0.0), wo.dot(h).max(0.0));
-        let alpha = self.roughness * self.roughness;
-        let dv = if self.anisotropy > 0.0 {
-            ggx_dv_anisotropic(alpha, self.anisotropy, self.rotation, wi, wo, h)
+        if self.anisotropy > 0.0 {
+            let dv = ggx_dv_anisotropic(
+                self.roughness * self.roughness,
+                self.anisotropy,
+                self.rotation,
+                wi,
+                wo,
+                g.h,
+            );
+            self.parts_with(&g, dv, &self.sheen_lobe())
         } else {
-            ggx_dv(alpha, nl, nv, nh)
-        };
-        let fw = (1.0 - vh).powi(5);
+            self.parts_at(&g, &self.sheen_lobe())
+        }
+    }
+
+    /// [`GltfParams::parts`] of an isotropic material (`anisotropy` 0) at a pair's geometry, with
+    /// the sheen lobe `sheen` of [`GltfParams::sheen_lobe`] (worked out once for many pairs).
+    pub fn parts_at(&self, g: &PairGeometry, sheen: &SheenLobe) -> (f64, f64) {
+        let alpha = self.roughness * self.roughness;
+        self.parts_with(g, ggx_dv(alpha, g.nl, g.nv, g.nh), sheen)
+    }
+
+    /// The sheen layer's lobe.
+    pub fn sheen_lobe(&self) -> SheenLobe {
+        SheenLobe::new(self.sheen_roughness)
+    }
+
+    /// The parts given the base lobe's D·V.
+    fn parts_with(&self, g: &PairGeometry, dv: f64, sheen: &SheenLobe) -> (f64, f64) {
+        let (nl, nv, nh, fw) = (g.nl, g.nv, g.nh, g.fw);
         let fd = self.specular * (self.dielectric_f0 + (1.0 - self.dielectric_f0) * fw);
         let m = self.metallic;
         let mut a = (1.0 - m) * (1.0 - fd) / PI + m * dv * (1.0 - fw);
@@ -208,7 +265,7 @@ impl GltfParams {
             let e = sheen_albedo(r, nv).max(sheen_albedo(r, nl));
             let scale = 1.0 - self.sheen * e;
             a *= scale;
-            b = b * scale + self.sheen * sheen_brdf(r, nl, nv, nh);
+            b = b * scale + self.sheen * sheen.eval(nl, nv, nh);
         }
         if self.clearcoat > 0.0 {
             let fc = self.clearcoat * (0.04 + 0.96 * (1.0 - nv).powi(5));
@@ -217,6 +274,38 @@ impl GltfParams {
             b = b * (1.0 - fc) + fc * ggx_dv(ac, nl, nv, nh);
         }
         (a * nl, b * nl)
+    }
+}
+
+/// What the standard models read of a direction pair (wi, wo) in the local frame: the half vector
+/// h and the cosines n·l, n·v, n·h, v·h, with Schlick's weight (1 − v·h)⁵. Worked out once per
+/// pair where a fit evaluates the models at the same pairs many times.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairGeometry {
+    pub h: DVec3,
+    pub nl: f64,
+    pub nv: f64,
+    pub nh: f64,
+    pub vh: f64,
+    pub fw: f64,
+}
+
+impl PairGeometry {
+    /// `None` where either direction is at or below the horizon or they are opposite (f = 0).
+    pub fn new(wi: DVec3, wo: DVec3) -> Option<Self> {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return None;
+        }
+        let h = (wi + wo).try_normalize()?;
+        let vh = wo.dot(h).max(0.0);
+        Some(Self {
+            h,
+            nl: wi.z,
+            nv: wo.z,
+            nh: h.z.max(0.0),
+            vh,
+            fw: (1.0 - vh).powi(5),
+        })
     }
 }
 
@@ -259,42 +348,58 @@ impl PreviewParams {
         wi: DVec3,
         wo: DVec3,
     ) -> (f64, f64) {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return (0.0, 0.0);
+        match PairGeometry::new(wi, wo) {
+            Some(g) => {
+                let (a, b) = self.parts_at(solve_specular, [diffuse; 3], [specular; 3], &g);
+                (a[0], b[0])
+            }
+            None => (0.0, 0.0),
         }
-        let Some(h) = (wi + wo).try_normalize() else {
-            return (0.0, 0.0);
-        };
-        let (nl, nv, nh, vh) = (wi.z, wo.z, h.z.max(0.0), wo.dot(h).max(0.0));
-        let fw = (1.0 - vh).powi(5);
+    }
+
+    /// [`PreviewParams::parts`] for the three channels at once, at a pair's geometry (the lobes
+    /// are worked out once).
+    pub fn parts_at(
+        &self,
+        solve_specular: bool,
+        diffuse: [f64; 3],
+        specular: [f64; 3],
+        g: &PairGeometry,
+    ) -> ([f64; 3], [f64; 3]) {
+        let (nl, nv, nh, fw) = (g.nl, g.nv, g.nh, g.fw);
         let lobe = preview_lobe(self.roughness, nl, nv, nh);
         let coat = if self.clearcoat > 0.0 {
             self.clearcoat * (0.04 + 0.96 * fw) * preview_lobe(self.clearcoat_roughness, nl, nv, nh)
         } else {
             0.0
         };
-        let (a, b) = if self.use_specular_workflow {
-            if solve_specular {
-                // f = c/π (1 − fw) + fw·lobe + x (1 − fw)(lobe − c/π).
-                (
-                    (1.0 - fw) * (lobe - diffuse / PI),
-                    diffuse / PI * (1.0 - fw) + fw * lobe + coat,
-                )
+        let channel = |c: usize| {
+            let (diffuse, specular) = (diffuse[c], specular[c]);
+            let (a, b) = if self.use_specular_workflow {
+                if solve_specular {
+                    // f = c/π (1 − fw) + fw·lobe + x (1 − fw)(lobe − c/π).
+                    (
+                        (1.0 - fw) * (lobe - diffuse / PI),
+                        diffuse / PI * (1.0 - fw) + fw * lobe + coat,
+                    )
+                } else {
+                    let f = specular * (1.0 - fw) + fw;
+                    ((1.0 - f) / PI, f * lobe + coat)
+                }
             } else {
-                let f = specular * (1.0 - fw) + fw;
-                ((1.0 - f) / PI, f * lobe + coat)
-            }
-        } else {
-            let m = self.metallic;
-            // spec = (1 − m) + m·c and F = spec·q, q = (0.04(1 − m) + m)(1 − fw) + fw.
-            let q = (0.04 * (1.0 - m) + m) * (1.0 - fw) + fw;
-            let f_prev = ((1.0 - m) + m * diffuse) * q;
-            (
-                (1.0 - m) * (1.0 - f_prev) / PI + q * m * lobe,
-                q * (1.0 - m) * lobe + coat,
-            )
+                let m = self.metallic;
+                // spec = (1 − m) + m·c and F = spec·q, q = (0.04(1 − m) + m)(1 − fw) + fw.
+                let q = (0.04 * (1.0 - m) + m) * (1.0 - fw) + fw;
+                let f_prev = ((1.0 - m) + m * diffuse) * q;
+                (
+                    (1.0 - m) * (1.0 - f_prev) / PI + q * m * lobe,
+                    q * (1.0 - m) * lobe + coat,
+                )
+            };
+            (a * nl, b * nl)
         };
-        (a * nl, b * nl)
+        let ch = [channel(0), channel(1), channel(2)];
+        (ch.map(|x| x.0), ch.map(|x| x.1))
     }
 }
 

@@ -69,7 +69,12 @@ pub const STROKES: &str = include_str!("../../samples/strokes/bunny-highlight.js
 
 /// Fits the sample strokes (a highlight painted on the default view) and returns the material.
 pub fn fitted(c: &Case) -> glint::fit::material::Material {
-    let views = glint::fit::strokes::parse(STROKES).unwrap();
+    fitted_with(c, STROKES)
+}
+
+/// The material fitted to the strokes `strokes` (a stroke file's JSON) in case `c`.
+pub fn fitted_with(c: &Case, strokes: &str) -> glint::fit::material::Material {
+    let views = glint::fit::strokes::parse(strokes).unwrap();
     let outcome = fit(
         &Baked {
             scene: &c.scene,
