@@ -2,8 +2,9 @@
 //!
 //! Where `libembree3.so` is found, the crate is built with `cfg(embree)` and links it; elsewhere it
 //! builds without it and the rays go through obvhs (`src/bake/tracer.rs`), the same answers more
-//! slowly. Its headers' configuration must match what `src/bake/embree.rs` declares. `GLINT_EMBREE=0` builds without Embree even where it is installed; `EMBREE_DIR` names a
-//! folder to look in first (its `lib/`). After installing or removing Embree, `cargo clean -p
+//! slowly. Its headers' configuration must match what `src/bake/embree.rs` declares.
+//! `GLINT_EMBREE=0` builds without Embree even where it is installed; `EMBREE_DIR` names a folder
+//! to look in first (its `lib/`). After installing or removing Embree, `cargo clean -p
 //! glint` makes the next build look again.
 
 use std::path::PathBuf;

@@ -90,11 +90,6 @@ pub fn ggx_dv_anisotropic(
     d * (0.5 / (ggx_v + ggx_l)).clamp(0.0, 1.0)
 }
 
-/// `KHR_materials_sheen`'s "Charlie" distribution (Conty & Kulla 2017), α = sheenRoughness.
-pub fn charlie_d(alpha: f64, nh: f64) -> f64 {
-    SheenLobe::new(alpha).d(nh)
-}
-
 /// The sheen BRDF without its colour: D_Charlie · V_Charlie (the extension's F = 1).
 pub fn sheen_brdf(alpha: f64, nl: f64, nv: f64, nh: f64) -> f64 {
     SheenLobe::new(alpha).eval(nl, nv, nh)
@@ -149,7 +144,7 @@ impl SheenLobe {
         }
     }
 
-    /// D_Charlie.
+    /// `KHR_materials_sheen`'s "Charlie" distribution D (Conty & Kulla 2017).
     pub fn d(&self, nh: f64) -> f64 {
         let sin2 = (1.0 - nh * nh).max(0.0);
         self.norm * sin2.powf(0.5 * self.inv)
@@ -235,15 +230,16 @@ impl GltfParams {
                 wo,
                 g.h,
             );
-            self.parts_with(&g, dv, &self.sheen_lobe())
+            self.parts_with(&g, dv, None)
         } else {
-            self.parts_at(&g, &self.sheen_lobe())
+            self.parts_at(&g, None)
         }
     }
 
     /// [`GltfParams::parts`] of an isotropic material (`anisotropy` 0) at a pair's geometry, with
-    /// the sheen lobe `sheen` of [`GltfParams::sheen_lobe`] (worked out once for many pairs).
-    pub fn parts_at(&self, g: &PairGeometry, sheen: &SheenLobe) -> (f64, f64) {
+    /// the sheen lobe of [`GltfParams::sheen_lobe`] when given (worked out once for many pairs;
+    /// `None`: worked out here where the sheen is on).
+    pub fn parts_at(&self, g: &PairGeometry, sheen: Option<&SheenLobe>) -> (f64, f64) {
         let alpha = self.roughness * self.roughness;
         self.parts_with(g, ggx_dv(alpha, g.nl, g.nv, g.nh), sheen)
     }
@@ -254,7 +250,7 @@ impl GltfParams {
     }
 
     /// The parts given the base lobe's D·V.
-    fn parts_with(&self, g: &PairGeometry, dv: f64, sheen: &SheenLobe) -> (f64, f64) {
+    fn parts_with(&self, g: &PairGeometry, dv: f64, sheen: Option<&SheenLobe>) -> (f64, f64) {
         let (nl, nv, nh, fw) = (g.nl, g.nv, g.nh, g.fw);
         let fd = self.specular * (self.dielectric_f0 + (1.0 - self.dielectric_f0) * fw);
         let m = self.metallic;
@@ -265,7 +261,8 @@ impl GltfParams {
             let e = sheen_albedo(r, nv).max(sheen_albedo(r, nl));
             let scale = 1.0 - self.sheen * e;
             a *= scale;
-            b = b * scale + self.sheen * sheen.eval(nl, nv, nh);
+            let lobe = sheen.copied().unwrap_or_else(|| self.sheen_lobe());
+            b = b * scale + self.sheen * lobe.eval(nl, nv, nh);
         }
         if self.clearcoat > 0.0 {
             let fc = self.clearcoat * (0.04 + 0.96 * (1.0 - nv).powi(5));

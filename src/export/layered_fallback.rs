@@ -509,7 +509,12 @@ impl Objective {
         } else {
             self.geometry
                 .par_iter()
-                .map(|g| grey(g.as_ref().map_or((0.0, 0.0), |g| p.parts_at(g, &sheen))))
+                .map(|g| {
+                    grey(
+                        g.as_ref()
+                            .map_or((0.0, 0.0), |g| p.parts_at(g, Some(&sheen))),
+                    )
+                })
                 .collect()
         }
     }
