@@ -42,8 +42,12 @@
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
 //!
-//! 8. A vertex may be given its neighbours' agreed cells ([`Prior`], [`super::sparse`] rule 4):
-//!    those cells are set before the cut is built and cast no ray; everything else is as above.
+//! 8. A vertex may be given its neighbours' agreed cells ([`Prior`], [`super::sparse`] rules 4
+//!    and 5): those cells are set before the cut is built and cast no ray. A node above the cell
+//!    size whose cells are all given is not cone-tested, nor one with a cell given as occluded (its
+//!    cone is not free); where they are all given alike and the node lies wholly above the
+//!    horizon, it enters the cut as it stands (what merging its cells gives). Everything else is
+//!    as above.
 //!
 //! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon
 //! leaf lies in exactly one; values are in [0, 1]; the result does not depend on the thread that
@@ -242,6 +246,9 @@ struct Ctx<'a> {
     /// Whether this pass may take a subtree's part of the cut from its memo (the passes of
     /// boundary refinement; not the cut cap's, which change ε) and records memos.
     memo: bool,
+    /// [`Prior::cell_ranges`] and [`Prior::agreed`].
+    cell_ranges: &'a [(u32, u32)],
+    agreed: &'a [[u64; 2]],
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -343,6 +350,9 @@ impl CellNeighbours {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Prior<'a> {
     pub cells: &'a [(u32, u32, u32)],
+    /// Per tree node, the range of `cells` under it ([`Prior::cell_ranges`]); needed with
+    /// `agreed`.
+    pub cell_ranges: &'a [(u32, u32)],
     pub agreed: &'a [[u64; 2]],
     /// Fill [`VertexCut::cell_bits`].
     pub record: bool,
@@ -355,6 +365,19 @@ impl Prior<'_> {
         super::decisions::nodes_of_at_most(tree, cell_leaves.max(1) as u32, 0)
             .into_iter()
             .map(|k| (k as u32, nodes[k].first, nodes[k].first + nodes[k].count))
+            .collect()
+    }
+
+    /// Per tree node, the range of [`Prior::cells`]' `cells` whose leaves it holds (for a node
+    /// above the cell size, exactly the cells under it).
+    pub fn cell_ranges(tree: &LightTree, cells: &[(u32, u32, u32)]) -> Vec<(u32, u32)> {
+        tree.nodes()
+            .iter()
+            .map(|node| {
+                let lo = cells.partition_point(|c| c.1 < node.first);
+                let hi = cells.partition_point(|c| c.1 < node.first + node.count);
+                (lo as u32, hi as u32)
+            })
             .collect()
     }
 }
@@ -574,6 +597,8 @@ pub fn vertex_cut(
         free: Vec::new(),
         redo: false,
         memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
+        cell_ranges: prior.cell_ranges,
+        agreed: prior.agreed,
     };
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
@@ -714,8 +739,34 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             return m.sums;
         }
     }
-    // Cone tests above the traced nodes, and inside them down to `cone_leaves`.
-    let cone = !known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves);
+    // Every cell of a node above the cell size taken from the neighbours (rule 8): no cone test and
+    // no rays, and where they are all alike and the node lies wholly above the horizon, the node
+    // itself is the cut (the merge of its cells would give it).
+    let agreed = if ctx.redo || cell != ctx.cell_leaves || node.count as usize <= cell {
+        Agreed::Partly
+    } else {
+        agreed_over(ctx, k)
+    };
+    if let (Agreed::All(Some(visible)), true) = (agreed, wholly_above) {
+        let w = node_weight(ctx, k, wholly_above);
+        if w <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let v = if visible { 1.0 } else { 0.0 };
+        let start = out.len() as u32;
+        out.push((k as u32, v as f32));
+        let sums = (w, w * v, 0.0);
+        if memo {
+            ctx.scratch
+                .recorded
+                .push((k as u32, start, out.len() as u32, sums));
+        }
+        return sums;
+    }
+    // Cone tests above the traced nodes, and inside them down to `cone_leaves`; not where a cell
+    // is taken as occluded from the neighbours.
+    let cone = agreed == Agreed::Partly
+        && (!known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves));
     if cone {
         let free = if ctx.redo {
             ctx.free.binary_search(&(k as u32)).is_ok()
@@ -768,7 +819,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     } else {
         known_below && !known
     };
-    if batch && !ctx.redo {
+    if batch && !ctx.redo && !matches!(agreed, Agreed::All(_)) {
         trace_cells(ctx, k, cell);
         ctx.batched_end = node.first + node.count;
     }
@@ -856,8 +907,66 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>
         }
         return;
     }
+    if cell == ctx.cell_leaves && matches!(agreed_over(ctx, k), Agreed::All(_)) {
+        // Every cell below taken from the neighbours: nothing to trace.
+        return;
+    }
     collect_cells(ctx, node.left as usize, cell, out);
     collect_cells(ctx, node.right as usize, cell, out);
+}
+
+/// What the cells under node `k` (a node above the cell size) take from the neighbours
+/// ([`Prior::agreed`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Agreed {
+    /// Not every cell, and none of them occluded.
+    Partly,
+    /// Not every cell, and at least one occluded: the node's cone is not worth testing.
+    PartlyOccluded,
+    /// Every cell, all visible (`Some(true)`), all occluded (`Some(false)`) or mixed (`None`).
+    All(Option<bool>),
+}
+
+fn agreed_over(ctx: &Ctx, k: usize) -> Agreed {
+    if ctx.agreed.is_empty() {
+        return Agreed::Partly;
+    }
+    let (lo, hi) = ctx.cell_ranges[k];
+    let (lo, hi) = (lo as usize, hi as usize);
+    let (mut all_known, mut all_visible, mut any_visible, mut any_occluded) =
+        (true, true, false, false);
+    let mut i = lo;
+    while i < hi {
+        let bit = i % 64;
+        let n = (64 - bit).min(hi - i);
+        let mask = if n == 64 {
+            !0u64
+        } else {
+            ((1u64 << n) - 1) << bit
+        };
+        let Some(&[known, visible]) = ctx.agreed.get(i / 64) else {
+            return Agreed::Partly;
+        };
+        all_known &= known & mask == mask;
+        all_visible &= visible & mask == mask;
+        any_visible |= visible & mask != 0;
+        any_occluded |= known & !visible & mask != 0;
+        i += n;
+    }
+    if !all_known {
+        return if any_occluded {
+            Agreed::PartlyOccluded
+        } else {
+            Agreed::Partly
+        };
+    }
+    Agreed::All(if all_visible {
+        Some(true)
+    } else if !any_visible {
+        Some(false)
+    } else {
+        None
+    })
 }
 
 /// Visibility of a cell (tree node `k`, of cell size `cell`) along its mean direction, traced once

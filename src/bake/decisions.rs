@@ -594,6 +594,7 @@ pub fn decide_cell(
                     .map(|(settings, neighbours)| {
                         let prior = Prior {
                             cells: &[],
+                            cell_ranges: &[],
                             agreed: &[],
                             record: false,
                         };

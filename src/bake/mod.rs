@@ -204,10 +204,14 @@ pub struct Baker<'a> {
     cell_neighbours: cuts::CellNeighbours,
     /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
     cells: Vec<(u32, u32, u32)>,
+    /// The range of `cells` under each tree node ([`cuts::Prior::cell_ranges`]).
+    cell_ranges: Vec<(u32, u32)>,
     /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced;
     /// empty when every vertex is traced.
     vertex_neighbours: Vec<Vec<u32>>,
     sampled: Vec<bool>,
+    /// The levels of the sampled vertices, traced top level first ([`sparse::Levels`]).
+    levels: sparse::Levels,
 }
 
 impl<'a> Baker<'a> {
@@ -283,7 +287,7 @@ impl<'a> Baker<'a> {
         let interpolate = trace_visibility && settings.refine.interpolate;
         let (
             ((cell_deg, cell_reason, cell_decision), ring),
-            ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled)),
+            ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled, levels)),
         ) = rayon::join(
             || {
                 // The rotation-worst light per leaf: what refinement (e), vertex sampling (f) and
@@ -347,9 +351,10 @@ impl<'a> Baker<'a> {
                     let neighbours =
                         sparse::vertex_neighbours(mesh.positions.len(), &mesh.triangles);
                     let sampled = sparse::sampled_vertices(&neighbours);
-                    (neighbours, sampled)
+                    let levels = sparse::Levels::new(&neighbours, &sampled);
+                    (neighbours, sampled, levels)
                 } else {
-                    (Vec::new(), Vec::new())
+                    (Vec::new(), Vec::new(), sparse::Levels::default())
                 };
                 (frames, sampling)
             },
@@ -398,6 +403,7 @@ impl<'a> Baker<'a> {
         } else {
             Vec::new()
         };
+        let cell_ranges = cuts::Prior::cell_ranges(&tree, &cells);
         Ok(Self {
             scene,
             settings,
@@ -412,9 +418,11 @@ impl<'a> Baker<'a> {
             decision_seconds: start.elapsed().as_secs_f64(),
             ring,
             cell_neighbours,
+            cell_ranges,
             cells,
             vertex_neighbours,
             sampled,
+            levels,
         })
     }
 
@@ -428,12 +436,14 @@ impl<'a> Baker<'a> {
             return "every vertex traced (vertex sampling off)".into();
         }
         let sampled = self.sampled.iter().filter(|&&s| s).count();
+        let top = self.levels.top_count();
         format!(
-            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with short edges taking from their sampled neighbours every visibility cell they agree on)",
+            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with short edges taking from their sampled neighbours every visibility cell they agree on); the sampled ones in levels, {top} at the top traced whole, each other taking the cells its sampled neighbours of the level above agree on where they lie within {:.4} of the diagonal of it",
             self.settings.refine.min_edge,
             self.settings.refine.threshold,
             sparse::MAX_NORMAL_DEG,
-            n - sampled - interpolated
+            n - sampled - interpolated,
+            self.settings.refine.min_edge,
         )
     }
 
@@ -565,6 +575,7 @@ impl<'a> Baker<'a> {
         let known = agreed.map(|f| f(i)).unwrap_or_default();
         let prior = cuts::Prior {
             cells: &self.cells,
+            cell_ranges: &self.cell_ranges,
             agreed: &known,
             record,
         };
@@ -642,21 +653,55 @@ impl<'a> Baker<'a> {
                 }
             }
         }
-        // (Recording what each knows of every visibility cell, for the vertices traced in step 2.)
-        self.bake_points(
-            &self.points_of(&first),
-            None,
-            true,
-            &|k| progress(k.min(own)),
-            &mut |i, cut| state.store(first[i] as usize, cut),
-        );
+        // Level by level from the top, with the vertices of the level above that each takes cells
+        // from (rule 5); each recording what it knows of every visibility cell, for the vertices
+        // traced after it.
+        let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
+        let mut by_level: Vec<Vec<(u32, Option<Vec<u32>>)>> = Vec::new();
+        let mut queue = first;
+        while !queue.is_empty() {
+            let found: Vec<Option<Vec<u32>>> = queue
+                .par_iter()
+                .map(|&v| {
+                    self.levels.anchors(
+                        v as usize,
+                        &self.positions,
+                        &self.normals,
+                        &self.vertex_neighbours,
+                        max_edge,
+                    )
+                })
+                .collect();
+            let mut above = Vec::new();
+            for (v, anchors) in queue.into_iter().zip(found) {
+                for &u in anchors.iter().flatten() {
+                    if !state.baked[u as usize] && !wanted[u as usize] {
+                        wanted[u as usize] = true;
+                        above.push(u);
+                    }
+                }
+                let level = self.levels.level[v as usize] as usize;
+                if by_level.len() <= level {
+                    by_level.resize(level + 1, Vec::new());
+                }
+                by_level[level].push((v, anchors));
+            }
+            queue = above;
+        }
+        let mut finished = 0;
+        for list in by_level.into_iter().rev() {
+            let (vertices, anchors): (Vec<u32>, Vec<Option<Vec<u32>>>) = list.into_iter().unzip();
+            self.bake_assisted(&vertices, &anchors, true, state, &|k| {
+                progress((finished + k).min(own))
+            });
+            finished += vertices.len();
+        }
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo
             .iter()
             .copied()
             .filter(|&v| !state.baked[v as usize])
             .collect();
-        let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
         let threshold = self.settings.refine.threshold;
         let epsilon = self.settings.cut.epsilon;
         let mut traced = Vec::new();
@@ -729,37 +774,65 @@ impl<'a> Baker<'a> {
         let done = own + interpolated;
         progress(done);
         // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
-        // visibility: worked out as each is traced (512 bytes a vertex at 5.625°, so not for all
-        // of them at once). The sampled vertices' cell bits serve only this step: taken out here,
-        // and freed after it.
+        // visibility (rule 4).
+        let anchors: Vec<Option<Vec<u32>>> = traced
+            .par_iter()
+            .map(|&v| {
+                sparse::anchors(
+                    v as usize,
+                    &self.positions,
+                    &self.normals,
+                    &self.vertex_neighbours,
+                    &self.sampled,
+                    max_edge,
+                )
+            })
+            .collect();
+        self.bake_assisted(&traced, &anchors, false, state, &|k| progress(done + k));
+    }
+
+    /// Traces `vertices` into `state`, vertex i taking every visibility cell that all of
+    /// `anchors[i]` (baked, with their cell bits) know alike ([`sparse::agreed_cells`]), and
+    /// recording its own cell bits where `record`. The sampled vertices' cell bits stay in `state`
+    /// until the refinement (128 bytes a vertex at 11.25°, 512 at 5.625°), so that a later
+    /// [`Baker::bake_set`] call finds them too.
+    fn bake_assisted(
+        &self,
+        vertices: &[u32],
+        anchors: &[Option<Vec<u32>>],
+        record: bool,
+        state: &mut PartialBake,
+        progress: &(dyn Fn(usize) + Sync),
+    ) {
         let bits = std::mem::take(&mut state.cell_bits);
         let agreed = |i: usize| -> Vec<[u64; 2]> {
-            let v = traced[i] as usize;
-            match sparse::anchors(
-                v,
-                &self.positions,
-                &self.normals,
-                &self.vertex_neighbours,
-                &self.sampled,
-                max_edge,
-            ) {
-                Some(anchors) => {
+            match anchors.get(i) {
+                Some(Some(anchors)) => {
                     let of: Vec<&[[u64; 2]]> = anchors
                         .iter()
                         .map(|&u| bits.get(u as usize).map_or(&[][..], Vec::as_slice))
                         .collect();
                     sparse::agreed_cells(&of)
                 }
-                None => Vec::new(),
+                _ => Vec::new(),
             }
         };
         self.bake_points(
-            &self.points_of(&traced),
+            &self.points_of(vertices),
             Some(&agreed),
-            false,
-            &|k| progress(done + k),
-            &mut |i, cut| state.store(traced[i] as usize, cut),
+            record,
+            progress,
+            &mut |i, cut| state.store(vertices[i] as usize, cut),
         );
+        let new = std::mem::replace(&mut state.cell_bits, bits);
+        for (v, b) in new.into_iter().enumerate() {
+            if !b.is_empty() {
+                if state.cell_bits.len() <= v {
+                    state.cell_bits.resize(v + 1, Vec::new());
+                }
+                state.cell_bits[v] = b;
+            }
+        }
     }
 
     /// Bakes every vertex of the scene's mesh as it is (no refinement); `order` only changes which
@@ -796,6 +869,8 @@ impl<'a> Baker<'a> {
         }
         let mut mesh = self.scene.mesh.clone();
         let mut state = base;
+        // (The sampled vertices' cell bits served the base mesh's vertices only.)
+        state.cell_bits = Vec::new();
         // Each new vertex as a blend of at most three imported vertices (the corners of the
         // imported triangle it lies in), so that its rays start on the smooth surface the imported
         // normals describe, as the imported vertices' do, not on the flat facet below it (which
