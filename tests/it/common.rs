@@ -217,3 +217,45 @@ pub fn temp_dir(name: &str) -> PathBuf {
 pub fn in_ci() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true")
 }
+
+/// The visibility error of a cut at vertex `v` against a ray per direction, as
+/// (Σ_ℓ L_ℓ Ω_ℓ c_ℓ |V_ℓ − V_true,ℓ|, Σ_ℓ L_ℓ Ω_ℓ c_ℓ) over the leaf directions ℓ above the horizon
+/// (L the luminance per leaf, c the cosine; V_ℓ the value of the cut node holding ℓ, 0 where
+/// none), traced from the vertex's ray origin with `baker`'s tracer.
+pub fn visibility_error(
+    baker: &glint::bake::Baker,
+    luminance: &[f64],
+    v: u32,
+    entries: &[(u32, f32)],
+) -> (f64, f64) {
+    let tree = &baker.tree;
+    let (origin, normal) = baker.ray_origin(v as usize).unwrap();
+    let mut leaf_v = vec![0.0f32; tree.leaf_count()];
+    for &(k, value) in entries {
+        let node = tree.nodes()[k as usize];
+        leaf_v[node.first as usize..(node.first + node.count) as usize].fill(value);
+    }
+    let (mut wrong, mut total) = (0.0, 0.0);
+    for l in 0..tree.leaf_count() {
+        let w = luminance[l] * tree.leaf_moments()[l].dot(normal).max(0.0);
+        if w <= 0.0 {
+            continue;
+        }
+        let d = tree.leaf_directions()[l];
+        let hit = baker
+            .tracer
+            .occluded(origin.as_vec3().into(), glam::Vec3A::from(d.as_vec3()));
+        wrong += w * (leaf_v[l] as f64 - if hit { 0.0 } else { 1.0 }).abs();
+        total += w;
+    }
+    (wrong, total)
+}
+
+/// The environment's luminance (mean of R, G, B) per leaf direction of `baker`'s set, unrotated.
+pub fn leaf_luminance(env: &glint::env::EnvMap, baker: &glint::bake::Baker) -> Vec<f64> {
+    glint::light::LightSums::new(env, &baker.set, &baker.tree, 0.0)
+        .leaf_radiance()
+        .iter()
+        .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+        .collect()
+}
