@@ -249,6 +249,8 @@ struct Ctx<'a> {
     /// [`Prior::cell_ranges`] and [`Prior::agreed`].
     cell_ranges: &'a [(u32, u32)],
     agreed: &'a [[u64; 2]],
+    /// [`Prior::root_free`].
+    root_free: Option<bool>,
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -356,6 +358,9 @@ pub struct Prior<'a> {
     pub agreed: &'a [[u64; 2]],
     /// Fill [`VertexCut::cell_bits`].
     pub record: bool,
+    /// Whether nothing lies above the vertex's tangent plane, where known already (decision (a),
+    /// [`super::decisions::decide_occlusion`]): the root's cone test, not made again.
+    pub root_free: Option<bool>,
 }
 
 impl Prior<'_> {
@@ -599,6 +604,7 @@ pub fn vertex_cut(
         memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
         cell_ranges: prior.cell_ranges,
         agreed: prior.agreed,
+        root_free: prior.root_free,
     };
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
@@ -771,12 +777,24 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         let free = if ctx.redo {
             ctx.free.binary_search(&(k as u32)).is_ok()
         } else {
-            let f = ctx.tracer.cone_free(
-                ctx.apex,
-                ctx.nf,
-                node.mean_direction.as_vec3().into(),
-                node.cone_cos as f32,
-            );
+            let test = || {
+                ctx.tracer.cone_free(
+                    ctx.apex,
+                    ctx.nf,
+                    node.mean_direction.as_vec3().into(),
+                    node.cone_cos as f32,
+                )
+            };
+            // The root's cone holds every leaf direction, so decision (a)'s test of the whole
+            // hemisphere answers for it (a free hemisphere frees the root's cone; the converse can
+            // fail only for geometry seen between the leaf directions, which then gets rays).
+            let f = match ctx.root_free.filter(|_| k == 0) {
+                Some(f) => {
+                    debug_assert!(!f || test(), "a free hemisphere with a blocked root cone");
+                    f
+                }
+                None => test(),
+            };
             if f {
                 ctx.free.push(k as u32);
             }

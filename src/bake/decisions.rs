@@ -158,16 +158,17 @@ pub fn decide_occlusion(
     normals: &[DVec3],
     offset: f64,
     tracer: &Tracer,
-) -> (bool, String) {
-    let blocked = positions
+) -> (bool, String, Vec<bool>) {
+    let free: Vec<bool> = positions
         .par_iter()
         .zip(normals)
-        .filter(|(p, n)| {
-            let apex: Vec3A = (**p + **n * offset).as_vec3().into();
+        .map(|(p, n)| {
+            let apex: Vec3A = (*p + *n * offset).as_vec3().into();
             let nf: Vec3A = n.as_vec3().into();
-            !tracer.cone_free(apex, nf, nf, 0.0)
+            tracer.cone_free(apex, nf, nf, 0.0)
         })
-        .count();
+        .collect();
+    let blocked = free.iter().filter(|&&f| !f).count();
     if blocked == 0 {
         (
             false,
@@ -175,6 +176,7 @@ pub fn decide_occlusion(
                 "no vertex of {} sees geometry above its tangent plane (a convex object): no ray can hit the scene, visibility is the cosine alone",
                 positions.len()
             ),
+            free,
         )
     } else {
         (
@@ -183,6 +185,7 @@ pub fn decide_occlusion(
                 "{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced",
                 positions.len()
             ),
+            free,
         )
     }
 }
@@ -596,6 +599,7 @@ pub fn decide_cell(
                             cells: &[],
                             cell_ranges: &[],
                             agreed: &[],
+                            root_free: None,
                             record: false,
                         };
                         let made = vertex_cut(

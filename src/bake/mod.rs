@@ -204,6 +204,9 @@ pub struct Baker<'a> {
     cell_neighbours: cuts::CellNeighbours,
     /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
     cells: Vec<(u32, u32, u32)>,
+    /// Decision (a)'s answer per imported vertex: nothing above its tangent plane
+    /// ([`cuts::Prior::root_free`]).
+    hemisphere_free: Vec<bool>,
     /// The range of `cells` under each tree node ([`cuts::Prior::cell_ranges`]).
     cell_ranges: Vec<(u32, u32)>,
     /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced;
@@ -276,7 +279,7 @@ impl<'a> Baker<'a> {
             },
         );
         let (resolution, resolution_reason, probe_errors, set, tree) = light?;
-        let (tracer, (needs_trace, mut trace_reason)) = geometry;
+        let (tracer, (needs_trace, mut trace_reason, hemisphere_free)) = geometry;
         let mut settings = settings;
         let trace_visibility = needs_trace || settings.force_trace;
         if settings.force_trace && !needs_trace {
@@ -420,6 +423,7 @@ impl<'a> Baker<'a> {
             cell_neighbours,
             cell_ranges,
             cells,
+            hemisphere_free,
             vertex_neighbours,
             sampled,
             levels,
@@ -473,6 +477,7 @@ impl<'a> Baker<'a> {
         let mut out = vec![VertexCut::default(); vertices.len()];
         self.bake_points(
             &self.points_of(vertices),
+            Some(vertices),
             None,
             false,
             progress,
@@ -489,7 +494,7 @@ impl<'a> Baker<'a> {
         let points: Vec<Option<(DVec3, DVec3)>> = points.iter().copied().map(Some).collect();
         let mut cuts = Cuts::with_vertices(points.len());
         let mut rays = 0u64;
-        self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
+        self.bake_points(&points, None, None, false, &|_| {}, &mut |i, cut| {
             rays += cut.rays;
             cuts.set(i, &cut.entries)
         });
@@ -516,6 +521,7 @@ impl<'a> Baker<'a> {
     fn bake_points(
         &self,
         points: &[Option<(DVec3, DVec3)>],
+        ids: Option<&[u32]>,
         agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
         progress: &(dyn Fn(usize) + Sync),
@@ -534,8 +540,19 @@ impl<'a> Baker<'a> {
                 .map_init(
                     || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
                     |scratch, &i| {
-                        let cut =
-                            self.point_cut(points[i as usize], i as usize, agreed, record, scratch);
+                        // Decision (a) tested each imported vertex's hemisphere already: its answer
+                        // is the cut's first cone test.
+                        let root_free = ids
+                            .and_then(|ids| ids.get(i as usize))
+                            .and_then(|&v| self.hemisphere_free.get(v as usize).copied());
+                        let cut = self.point_cut(
+                            points[i as usize],
+                            i as usize,
+                            agreed,
+                            record,
+                            root_free,
+                            scratch,
+                        );
                         let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                         if n.is_multiple_of(256) || n == points.len() {
                             progress(n);
@@ -557,6 +574,7 @@ impl<'a> Baker<'a> {
         i: usize,
         agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
+        root_free: Option<bool>,
         scratch: &mut CutScratch,
     ) -> VertexCut {
         if !self.decisions.trace_visibility {
@@ -578,6 +596,7 @@ impl<'a> Baker<'a> {
             cell_ranges: &self.cell_ranges,
             agreed: &known,
             record,
+            root_free,
         };
         cuts::vertex_cut(
             p,
@@ -629,6 +648,7 @@ impl<'a> Baker<'a> {
         if self.sampled.len() != n {
             self.bake_points(
                 &self.points_of(&todo),
+                Some(&todo),
                 None,
                 false,
                 progress,
@@ -819,6 +839,7 @@ impl<'a> Baker<'a> {
         };
         self.bake_points(
             &self.points_of(vertices),
+            Some(vertices),
             Some(&agreed),
             record,
             progress,
@@ -934,7 +955,7 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            self.bake_points(&points, None, false, &|_| {}, &mut |i, cut| {
+            self.bake_points(&points, None, None, false, &|_| {}, &mut |i, cut| {
                 state.store(first_new + i, cut)
             });
             split_total += parents.len();
