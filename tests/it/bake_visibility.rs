@@ -595,6 +595,36 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
             "vertex {v} depends on how the set was split"
         );
     }
+    // A patch of the mesh split between two calls vertex by vertex, so that each call's vertices
+    // take cells from sampled vertices the other call baked: the same cuts as one call.
+    let mut patch: Vec<u32> = scene.mesh.triangles[..600]
+        .iter()
+        .flatten()
+        .copied()
+        .collect();
+    patch.sort_unstable();
+    patch.dedup();
+    let mut whole = glint::bake::PartialBake::new(n);
+    baker.bake_set(&patch, &mut whole, &|_| {});
+    let (odd, even): (Vec<u32>, Vec<u32>) = patch.iter().partition(|&&v| v % 2 == 1);
+    let mut parts = glint::bake::PartialBake::new(n);
+    baker.bake_set(&odd, &mut parts, &|_| {});
+    baker.bake_set(&even, &mut parts, &|_| {});
+    let assisted = patch
+        .iter()
+        .filter(|&&v| {
+            let cut = whole.vertex(v as usize);
+            !cut.interpolated && cut.rays > 0
+        })
+        .count();
+    assert!(assisted > 0);
+    for &v in &patch {
+        assert_eq!(
+            parts.vertex(v as usize),
+            whole.vertex(v as usize),
+            "vertex {v} of the patch depends on how it was split"
+        );
+    }
 }
 
 /// The cap on a cut's size relaxes ε for the merge only: a capped cut is coarser but keeps, per
