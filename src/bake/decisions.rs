@@ -152,7 +152,7 @@ impl Decisions {
     }
 }
 
-/// (a): (trace?, reason).
+/// (a): (trace?, reason, per vertex whether its hemisphere is free).
 pub fn decide_occlusion(
     positions: &[DVec3],
     normals: &[DVec3],
@@ -169,25 +169,18 @@ pub fn decide_occlusion(
         })
         .collect();
     let blocked = free.iter().filter(|&&f| !f).count();
-    if blocked == 0 {
-        (
-            false,
-            format!(
-                "no vertex of {} sees geometry above its tangent plane (a convex object): no ray can hit the scene, visibility is the cosine alone",
-                positions.len()
-            ),
-            free,
+    let reason = if blocked == 0 {
+        format!(
+            "no vertex of {} sees geometry above its tangent plane (a convex object): no ray can hit the scene, visibility is the cosine alone",
+            positions.len()
         )
     } else {
-        (
-            true,
-            format!(
-                "{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced",
-                positions.len()
-            ),
-            free,
+        format!(
+            "{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced",
+            positions.len()
         )
-    }
+    };
+    (blocked > 0, reason, free)
 }
 
 /// (b): tangents for the shading frames, with the decision.

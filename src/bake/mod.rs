@@ -629,7 +629,9 @@ impl<'a> Baker<'a> {
 
     /// Bakes the vertices of `vertices` not yet baked into `state` (of the scene's vertex count),
     /// with vertex sampling (decision (f), [`sparse`]): the sampled vertices among them and the
-    /// sampled neighbours the others need are traced first, then each other vertex is interpolated
+    /// sampled neighbours the others need are traced first, level by level from the top with the
+    /// vertices of the level above that each takes cells from ([`sparse::Levels`]), then each other
+    /// vertex is interpolated
     /// where the rule allows and traced where it does not. The result does not depend on how the
     /// vertices are split between calls or ordered. `progress` gets the number of vertices finished
     /// in this call.

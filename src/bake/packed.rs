@@ -180,8 +180,8 @@ pub struct PartialBake {
     pub cuts: Cuts,
     pub baked: Vec<bool>,
     pub records: Vec<VertexRecord>,
-    /// Sampled vertices' [`VertexCut::cell_bits`], kept until the vertices that take their agreed
-    /// cells are traced.
+    /// Sampled vertices' [`VertexCut::cell_bits`], kept for the vertices that take their agreed
+    /// cells, in this [`super::Baker::bake_set`] call or a later one; dropped by the refinement.
     pub(super) cell_bits: Vec<Vec<[u64; 2]>>,
 }
 

@@ -220,22 +220,10 @@ impl Levels {
         neighbours: &[Vec<u32>],
         max_edge: f64,
     ) -> Option<Vec<u32>> {
-        let (p, n) = (*positions.get(v)?, *normals.get(v)?);
         let anchors =
             &self.up[*self.up_start.get(v)? as usize..*self.up_start.get(v + 1)? as usize];
-        let cos_max = MAX_NORMAL_DEG.to_radians().cos();
-        if anchors.len() < 2
-            || neighbours
-                .get(v)?
-                .iter()
-                .any(|&u| positions[u as usize].distance(p) > max_edge)
-            || anchors.iter().any(|&u| {
-                normals[u as usize].dot(n) < cos_max || positions[u as usize].distance(p) > max_edge
-            })
-        {
-            return None;
-        }
-        Some(anchors.to_vec())
+        geometry_allows(v, positions, normals, neighbours, anchors, max_edge)
+            .then(|| anchors.to_vec())
     }
 }
 
@@ -250,29 +238,40 @@ pub fn anchors(
     sampled: &[bool],
     max_edge: f64,
 ) -> Option<Vec<u32>> {
-    let (p, n) = (*positions.get(v)?, *normals.get(v)?);
-    let around = neighbours.get(v)?;
-    if *sampled.get(v)?
-        || around
-            .iter()
-            .any(|&u| positions[u as usize].distance(p) > max_edge)
-    {
+    if *sampled.get(v)? {
         return None;
     }
-    let cos_max = MAX_NORMAL_DEG.to_radians().cos();
-    let anchors: Vec<u32> = around
+    let anchors: Vec<u32> = neighbours
+        .get(v)?
         .iter()
         .copied()
         .filter(|&u| sampled[u as usize])
         .collect();
-    if anchors.len() < 2
-        || anchors
+    geometry_allows(v, positions, normals, neighbours, &anchors, max_edge).then_some(anchors)
+}
+
+/// Rule 2 (a)–(c) for vertex v and the traced vertices it would take from: every edge at v at most
+/// `max_edge`, at least two of them, each within `max_edge` of v with its normal within
+/// [`MAX_NORMAL_DEG`] of v's. False for a vertex out of range.
+fn geometry_allows(
+    v: usize,
+    positions: &[DVec3],
+    normals: &[DVec3],
+    neighbours: &[Vec<u32>],
+    anchors: &[u32],
+    max_edge: f64,
+) -> bool {
+    let (Some(&p), Some(&n), Some(around)) = (positions.get(v), normals.get(v), neighbours.get(v))
+    else {
+        return false;
+    };
+    let cos_max = MAX_NORMAL_DEG.to_radians().cos();
+    let far = |u: u32| positions[u as usize].distance(p) > max_edge;
+    anchors.len() >= 2
+        && !around.iter().any(|&u| far(u))
+        && !anchors
             .iter()
-            .any(|&u| normals[u as usize].dot(n) < cos_max)
-    {
-        return None;
-    }
-    Some(anchors)
+            .any(|&u| far(u) || normals[u as usize].dot(n) < cos_max)
 }
 
 /// The cells whose visibility every one of `bits` ([`VertexCut::cell_bits`] of a vertex's sampled
