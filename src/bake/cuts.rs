@@ -14,7 +14,8 @@
 //! 1. A node wholly below the horizon is dropped (Ṽ = 0, no rays).
 //! 2. A node whose cone of directions is free ([`Tracer::cone_free`]) is visible, V = 1, exactly,
 //!    with no rays: this settles open sky wholesale. Tested above the nodes of rule 4, and inside
-//!    them on nodes of more than [`CutSettings::cone_leaves`] leaves where that is set.
+//!    them on nodes of more than [`CutSettings::cone_leaves`] leaves where that is set. At the
+//!    root, an imported vertex takes decision (a)'s test of its hemisphere ([`Prior::root_free`]).
 //! 3. A node so near the horizon that ½·Σ Ω_i c_i ≤ ε·Ω_k is accepted with V = ½ and no rays:
 //!    whatever its true visibility, the mean |Ṽ| error over it is within ε.
 //! 4. Otherwise a node with at most `trace_leaves` leaves has every above-horizon leaf traced;
