@@ -377,17 +377,25 @@ impl Tracer {
         }
         let cos_a = cos_half_angle.clamp(-1.0, 1.0);
         let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
-        let mut stack: [u32; 96] = [0; 96];
+        // How far a node's box reaches above the plane through the apex: at most 0, it lies
+        // entirely on or below it, and no above-horizon ray reaches it.
+        let reach = |k: u32| {
+            let b = &self.bvh2.nodes[k as usize].aabb;
+            ((b.min + b.max) * 0.5 - apex).dot(n) + ((b.max - b.min) * 0.5).dot(n.abs())
+        };
+        // (node, its reach), the next to visit on top.
+        let mut stack: [(u32, f32); 96] = [(0, 0.0); 96];
+        stack[0] = (0, reach(0));
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
-            let node = &self.bvh2.nodes[stack[top] as usize];
-            let centre = (node.aabb.min + node.aabb.max) * 0.5;
-            let half = (node.aabb.max - node.aabb.min) * 0.5;
-            // Entirely on or below the plane through the apex: no above-horizon ray reaches it.
-            if (centre - apex).dot(n) + half.dot(n.abs()) <= 0.0 {
+            let (k, above) = stack[top];
+            if above <= 0.0 {
                 continue;
             }
+            let node = &self.bvh2.nodes[k as usize];
+            let centre = (node.aabb.min + node.aabb.max) * 0.5;
+            let half = (node.aabb.max - node.aabb.min) * 0.5;
             if !sphere_meets_cone(centre, half.length(), apex, axis, cos_a, sin_a) {
                 continue;
             }
@@ -406,12 +414,9 @@ impl Tracer {
             } else if top + 2 <= stack.len() {
                 // The child that reaches higher above the plane first: it is the likelier to hold
                 // a triangle above it, which ends the search.
-                let reach = |k: u32| {
-                    let b = &self.bvh2.nodes[k as usize].aabb;
-                    ((b.min + b.max) * 0.5 - apex).dot(n) + ((b.max - b.min) * 0.5).dot(n.abs())
-                };
                 let (a, b) = (node.first_index, node.first_index + 1);
-                let (later, sooner) = if reach(a) >= reach(b) { (b, a) } else { (a, b) };
+                let (a, b) = ((a, reach(a)), (b, reach(b)));
+                let (later, sooner) = if a.1 >= b.1 { (b, a) } else { (a, b) };
                 stack[top] = later;
                 stack[top + 1] = sooner;
                 top += 2;
