@@ -35,10 +35,13 @@
 //!    light sums to at most β of the vertex's: the rays go to the shadow edges of the lights, not
 //!    to those across parts of the map that are dark under every rotation (dragon_100k under
 //!    studio_1k, 11.25° cells refined three times: 109 M → 34 M rays, the irradiance 0.18–1.26 % →
-//!    0.27–1.29 % of a ray per direction's over four rotations). Each pass after the first
-//!    rebuilds only the subtrees that hold a cell the last level marked, and takes the rest of the
-//!    cut from the pass before (memos per node of at least a cell's size; the same cut as
-//!    rebuilding it whole, [`CutSettings::rebuild_whole_passes`], tested).
+//!    0.27–1.29 % of a ray per direction's over four rotations). The levels are traced one after
+//!    the other, each marking among the cells the level before traced, with no cut built between
+//!    them; after the last, the cut is rebuilt once, only in the subtrees that hold a cell the
+//!    first level marked (every finer cell lies within one), and the rest is taken from the first
+//!    pass (memos per node of at least a cell's size; the same cut as rebuilding it whole after
+//!    every level, [`CutSettings::rebuild_whole_passes`], tested). A level's rays go in packets:
+//!    the quarters of its marked cells, in leaf order.
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
@@ -101,10 +104,11 @@ pub struct CutSettings {
     /// as without a gate).
     #[serde(default)]
     pub boundary_budget: f64,
-    /// Each pass of boundary refinement rebuilds the whole cut, instead of only the subtrees where
-    /// the last level marked cells (the rest taken from the pass before, [`CutScratch`]'s memos).
-    /// The cut is the same either way: off by default; on, it is the reference the memos are
-    /// tested against.
+    /// Boundary refinement rebuilds the whole cut after every level (the build traces the next
+    /// level's cells as it meets them), instead of tracing the levels one after the other and
+    /// rebuilding once, only the subtrees where the first level marked cells (the rest taken from
+    /// the first pass, [`CutScratch`]'s memos). The cut is the same either way: off by default;
+    /// on, it is the reference the direct levels and the memos are tested against.
     #[serde(default)]
     pub rebuild_whole_passes: bool,
 }
@@ -172,6 +176,9 @@ pub struct CutScratch {
     recorded: Vec<(u32, u32, u32, Sums)>,
     /// Leaf ranges of the cells the last [`mark_boundaries`] marked, in leaf order.
     marked: Vec<(u32, u32)>,
+    /// Those of the first level, kept while the finer levels are traced: the pass after the last
+    /// level rebuilds the subtrees that hold them.
+    first_marked: Vec<(u32, u32)>,
     generation: u32,
 }
 
@@ -202,6 +209,7 @@ impl CutScratch {
             arena: Vec::new(),
             recorded: Vec::new(),
             marked: Vec::new(),
+            first_marked: Vec::new(),
             generation: 0,
         }
     }
@@ -612,18 +620,38 @@ pub fn vertex_cut(
     build(&mut ctx, 0, false, top, &mut entries);
     finish_pass(&mut ctx, &entries);
     // Boundary refinement: cells beside a traced cell of the other visibility are traced again as
-    // four cells half as wide, then the cut is rebuilt (cached rays and cone answers are reused).
+    // four cells half as wide, level after level, and the cut is then rebuilt once (cached rays
+    // and cone answers are reused) where the first level marked cells; every finer level lies
+    // within them.
     let (mut cell, mut from) = (top, 0);
+    let mut refined = false;
     for _ in 0..ctx.boundary_levels {
         if cell < 4 || !mark_boundaries(&mut ctx, neighbours, cell, from, gate) {
             break;
         }
-        from = ctx.scratch.traced.len();
+        let traced = from..ctx.scratch.traced.len();
+        from = traced.end;
+        if !ctx.memo {
+            // The reference: the whole cut rebuilt after each level, which traces the level.
+            ctx.redo = true;
+            entries.clear();
+            build(&mut ctx, 0, false, top, &mut entries);
+        } else {
+            trace_marked(&mut ctx, cell, traced);
+            if !refined {
+                let s = &mut *ctx.scratch;
+                std::mem::swap(&mut s.first_marked, &mut s.marked);
+                refined = true;
+            }
+        }
+        cell /= 4;
+    }
+    if refined {
+        let s = &mut *ctx.scratch;
+        std::mem::swap(&mut s.first_marked, &mut s.marked);
         ctx.redo = true;
         entries.clear();
         build(&mut ctx, 0, false, top, &mut entries);
-        finish_pass(&mut ctx, &entries);
-        cell /= 4;
     }
     ctx.memo = false;
     while entries.len() > settings.max_cut.max(1) && ctx.epsilon < 1.0 {
@@ -827,11 +855,11 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         }
     }
     let known_below = known || node.count as usize <= ctx.trace_leaves;
-    // Packets for the first pass only: its cells tile the hemisphere in leaf order, so a packet's
-    // rays point alike. The cells a boundary refinement adds are scattered along shadow edges; in
-    // packets they ran slower than one at a time (dragon_100k under studio_1k: 34 → 42 s). With
-    // cone tests inside traced nodes, the packets are the cells of the first node small enough
-    // not to be tested.
+    // Packets in the first pass: its cells tile the hemisphere in leaf order, so a packet's rays
+    // point alike. (Boundary refinement's cells are traced before the pass that builds them, by
+    // [`trace_marked`], in packets of the quarters of marked cells; one at a time in the
+    // reference of whole rebuilds.) With cone tests inside traced nodes, the packets are the
+    // cells of the first node small enough not to be tested.
     let batch = if ctx.cone_leaves > 0 {
         // Nodes come in leaf order: one that starts before the last batch's end lies inside it.
         known_below && node.count as usize <= ctx.cone_leaves && node.first >= ctx.batched_end
@@ -892,13 +920,20 @@ fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
     let mut cells = std::mem::take(&mut ctx.scratch.batch);
     cells.clear();
     collect_cells(ctx, k, cell, &mut cells);
+    trace_batch(ctx, &cells);
+    ctx.scratch.batch = cells;
+}
+
+/// Traces `cells` (node, cell size), in that order, in packets ([`Tracer::occluded_from`]), and
+/// caches the answers.
+fn trace_batch(ctx: &mut Ctx, cells: &[(u32, u32)]) {
     let dirs: Vec<Vec3A> = cells
         .iter()
         .map(|&(k, _)| ctx.tree.nodes()[k as usize].mean_direction.as_vec3().into())
         .collect();
-    let mut visible = vec![false; cells.len()];
-    ctx.tracer.occluded_from(ctx.apex, &dirs, &mut visible);
-    for (&(k, cell), occluded) in cells.iter().zip(visible) {
+    let mut occluded = vec![false; cells.len()];
+    ctx.tracer.occluded_from(ctx.apex, &dirs, &mut occluded);
+    for (&(k, cell), occluded) in cells.iter().zip(occluded) {
         let key = ctx.key(ctx.tree.nodes()[k as usize].first, cell as usize);
         let s = &mut *ctx.scratch;
         if ctx.boundary_levels > 0 {
@@ -908,7 +943,62 @@ fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
         s.visible[key] = !occluded;
     }
     ctx.rays += cells.len() as u64;
+}
+
+/// Traces the quarters of every cell of size `cell` that the last [`mark_boundaries`] marked, of
+/// those the pass after the marking would reach, as [`build`] would trace them (above the horizon
+/// and with cosine mass), in packets ([`Tracer::occluded_from`]; the quarters of a cell, and of
+/// the cells next in leaf order, point alike). At the first level they are found by descending
+/// from the root as that pass would ([`reach_marked`]: a cell taken from the neighbours may lie
+/// under a free cone or a guess); at the finer levels they are the marked ones among the cells
+/// `traced` (entries of [`CutScratch::traced`]), all quarters of cells reached.
+fn trace_marked(ctx: &mut Ctx, cell: usize, traced: std::ops::Range<usize>) {
+    let mut cells = std::mem::take(&mut ctx.scratch.batch);
+    cells.clear();
+    if cell == ctx.cell_leaves {
+        reach_marked(ctx, 0, false, &mut cells);
+    } else {
+        for i in traced {
+            let (k, c) = ctx.scratch.traced[i];
+            let key = ctx.key(ctx.tree.nodes()[k as usize].first, cell);
+            if c as usize == cell && ctx.scratch.refine[key] == ctx.scratch.generation {
+                collect_cells(ctx, k as usize, cell, &mut cells);
+            }
+        }
+    }
+    trace_batch(ctx, &cells);
     ctx.scratch.batch = cells;
+}
+
+/// The quarters of the cells of the first level that [`mark_boundaries`] marked, where the pass
+/// after it reaches them: the descent of [`build`] in a boundary pass (below the horizon, a free
+/// cone or a guess ends it) into the subtrees that hold a marked cell.
+fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Vec<(u32, u32)>) {
+    let node = ctx.tree.nodes()[k];
+    let (max_cos, wholly_above) = node.horizon(ctx.n);
+    if max_cos <= 0.0 || !marked_within(&ctx.scratch.marked, node.first, node.first + node.count) {
+        return;
+    }
+    let top = ctx.cell_leaves;
+    if node.is_leaf() || (known && node.count as usize <= top) {
+        if cell_size(ctx, &node, top) < top {
+            collect_cells(ctx, k, top, out);
+        }
+        return;
+    }
+    let cone = !known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves);
+    if cone && ctx.free.binary_search(&(k as u32)).is_ok() {
+        return;
+    }
+    if !known && 0.5 * max_cos <= 4.0 * ctx.guess_epsilon {
+        let w = node_weight(ctx, k, wholly_above);
+        if w <= 0.0 || 0.5 * w <= ctx.guess_epsilon * node.solid_angle {
+            return;
+        }
+    }
+    let known = known || node.count as usize <= ctx.trace_leaves;
+    reach_marked(ctx, node.left as usize, known, out);
+    reach_marked(ctx, node.right as usize, known, out);
 }
 
 /// The cells [`trace_cells`] traces, in leaf order: (node, cell size).

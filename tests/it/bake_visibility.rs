@@ -700,29 +700,42 @@ fn cone_tests_inside_traced_nodes_keep_the_cut_and_save_rays() {
     assert!(tested.stats.rays_traced * 10 < all.stats.rays_traced * 9);
 }
 
-/// Boundary refinement's passes rebuild only the subtrees where the last level marked cells and
-/// take the rest of the cut from the pass before: every vertex's cut, node for node and value for
-/// value, and the rays are those of rebuilding the whole cut in every pass — the bunny under the
-/// studio map (three levels under the light budget, decided) and the teapot under a uniform sky
-/// (two levels at every shadow edge).
+/// Boundary refinement traces its levels one after the other and then rebuilds the cut once, only
+/// in the subtrees where the first level marked cells, taking the rest from the first pass: every
+/// vertex's cut, node for node and value for value, and the rays are those of rebuilding the whole
+/// cut after every level — the bunny under the studio map (three levels under the light budget,
+/// decided), the teapot under a uniform sky (two levels at every shadow edge) and dragon_100k under
+/// the studio map, whose vertices take cells from their sampled neighbours (some of them under a
+/// free cone or a guess, which the rebuild does not reach).
 #[test]
 fn boundary_passes_from_memos_give_the_cuts_of_whole_rebuilds() {
     let bunny = glint::scene::import(&common::assets().join("glb/bunny.glb")).unwrap();
     let studio = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
     let teapot = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
+    let dragon = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
     let sky = EnvMap::uniform(64, 32, [1.0; 3]).unwrap();
     let mut uniform = settings(64, 0.02);
     uniform.cell_deg = Some(5.625);
     uniform.boundary_levels = Some(2);
     uniform.cut.boundary_budget = 0.0;
-    for (scene, env, base) in [
-        (&bunny, &studio, BakeSettings::default()),
-        (&teapot, &sky, uniform),
+    // Cone tests and guesses on nodes of more than 256 directions, so that cells taken from the
+    // neighbours lie under them.
+    let mut dense = BakeSettings {
+        resolution: Some(32),
+        cell_deg: Some(11.25),
+        boundary_levels: Some(2),
+        ..BakeSettings::default()
+    };
+    dense.cut.trace_leaves = 256;
+    for (scene, env, base, sampled) in [
+        (&bunny, &studio, BakeSettings::default(), false),
+        (&teapot, &sky, uniform, false),
+        (&dragon, &studio, dense, true),
     ] {
         let bake = |whole: bool| {
             let mut s = base;
             s.cut.rebuild_whole_passes = whole;
-            s.refine.interpolate = false;
+            s.refine.interpolate = sampled;
             let baker = Baker::new(scene, env, s).unwrap();
             assert!(baker.settings.cut.boundary_levels >= 2);
             baker.bake_all(None, &|_| {})
