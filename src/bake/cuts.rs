@@ -269,6 +269,9 @@ struct Ctx<'a> {
 pub struct CellNeighbours {
     offsets: Vec<u32>,
     list: Vec<u32>,
+    /// The first leaf of each cell of `list`, beside it: the marking reads the neighbours' scratch
+    /// keys without loading their tree nodes.
+    firsts: Vec<u32>,
 }
 
 impl CellNeighbours {
@@ -341,7 +344,20 @@ impl CellNeighbours {
             list.extend(l);
             offsets.push(list.len() as u32);
         }
-        Self { offsets, list }
+        let firsts = list.iter().map(|&m| nodes[m as usize].first).collect();
+        Self {
+            offsets,
+            list,
+            firsts,
+        }
+    }
+
+    /// The first leaves of [`CellNeighbours::of`]'s cells, in the same order.
+    pub fn firsts_of(&self, k: usize) -> &[u32] {
+        match (self.offsets.get(k), self.offsets.get(k + 1)) {
+            (Some(&a), Some(&b)) => &self.firsts[a as usize..b as usize],
+            _ => &[],
+        }
     }
 
     /// The neighbours of cell `k` (empty for a node that is no refinable cell).
@@ -477,18 +493,18 @@ fn mark_boundaries(
         if c as usize != cell {
             continue;
         }
-        let v = scratch.visible[key(k)];
-        if neighbours
-            .of(k as usize)
-            .iter()
-            .any(|&m| scratch.stamp[key(m)] == generation && scratch.visible[key(m)] != v)
-        {
-            scratch.refine[key(k)] = generation;
+        let own = key(k);
+        let v = scratch.visible[own];
+        if neighbours.firsts_of(k as usize).iter().any(|&first| {
+            let m = base + first as usize;
+            scratch.stamp[m] == generation && scratch.visible[m] != v
+        }) {
+            scratch.refine[own] = generation;
             marked += 1;
             if let Some(g) = gate.filter(|_| budget > 0.0) {
                 let end = tree.leaf_count() as u32;
                 let w = super::refine::hemisphere_weight(tree, g.prefix, k, 0, end, n);
-                scratch.gated.push((w, key(k)));
+                scratch.gated.push((w, own));
             }
         }
     }
@@ -1121,6 +1137,12 @@ mod tests {
             };
             let mut listed = 0;
             for &a in &cells {
+                let firsts: Vec<u32> = table
+                    .of(a)
+                    .iter()
+                    .map(|&m| nodes[m as usize].first)
+                    .collect();
+                assert_eq!(table.firsts_of(a), firsts, "cell {a}: first leaves");
                 let la = leaves(a);
                 for &b in &cells {
                     if a == b {
