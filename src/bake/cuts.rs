@@ -815,7 +815,9 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         return sums;
     }
     // Cone tests above the traced nodes, and inside them down to `cone_leaves`; not where a cell
-    // is taken as occluded from the neighbours.
+    // is taken as occluded from the neighbours. (What ends the descent here in a boundary pass —
+    // the horizon, a free cone, a guess — [`reach_marked`] repeats: keep the two in step; the
+    // test of boundary passes against whole rebuilds fails where they part.)
     let cone = agreed == Agreed::Partly
         && (!known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves));
     if cone {
