@@ -174,11 +174,11 @@ pub struct CutScratch {
     /// The current pass's memos, in the order their nodes finished: (node, range in the pass's
     /// output, sums).
     recorded: Vec<(u32, u32, u32, Sums)>,
-    /// Leaf ranges of the cells the last [`mark_boundaries`] marked, in leaf order.
-    marked: Vec<(u32, u32)>,
+    /// The cells the last [`mark_boundaries`] marked, in leaf order: (first leaf, end leaf, node).
+    marked: Vec<(u32, u32, u32)>,
     /// Those of the first level, kept while the finer levels are traced: the pass after the last
     /// level rebuilds the subtrees that hold them.
-    first_marked: Vec<(u32, u32)>,
+    first_marked: Vec<(u32, u32, u32)>,
     generation: u32,
 }
 
@@ -528,7 +528,9 @@ fn mark_boundaries(
         let (k, c) = scratch.traced[i];
         if c as usize == cell && scratch.refine[key(k)] == generation {
             let node = &tree.nodes()[k as usize];
-            scratch.marked.push((node.first, node.first + node.count));
+            scratch
+                .marked
+                .push((node.first, node.first + node.count, k));
         }
     }
     scratch.marked.sort_unstable();
@@ -536,9 +538,9 @@ fn mark_boundaries(
 }
 
 /// Whether a cell marked by the last [`mark_boundaries`] meets the leaves [first, end).
-fn marked_within(marked: &[(u32, u32)], first: u32, end: u32) -> bool {
-    let i = marked.partition_point(|&(_, e)| e <= first);
-    marked.get(i).is_some_and(|&(s, _)| s < end)
+fn marked_within(marked: &[(u32, u32, u32)], first: u32, end: u32) -> bool {
+    let i = marked.partition_point(|&(_, e, _)| e <= first);
+    marked.get(i).is_some_and(|&(s, _, _)| s < end)
 }
 
 /// Ends a pass: its surviving memos ([`CutScratch::recorded`]) now index its cut, appended to the
@@ -645,15 +647,14 @@ pub fn vertex_cut(
         if cell < 4 || !mark_boundaries(&mut ctx, neighbours, cell, from, gate) {
             break;
         }
-        let traced = from..ctx.scratch.traced.len();
-        from = traced.end;
+        from = ctx.scratch.traced.len();
         if !ctx.memo {
             // The reference: the whole cut rebuilt after each level, which traces the level.
             ctx.redo = true;
             entries.clear();
             build(&mut ctx, 0, false, top, &mut entries);
         } else {
-            trace_marked(&mut ctx, cell, traced);
+            trace_marked(&mut ctx, cell);
             if !refined {
                 let s = &mut *ctx.scratch;
                 std::mem::swap(&mut s.first_marked, &mut s.marked);
@@ -968,20 +969,17 @@ fn trace_batch(ctx: &mut Ctx, cells: &[(u32, u32)]) {
 /// and with cosine mass), in packets ([`Tracer::occluded_from`]; the quarters of a cell, and of
 /// the cells next in leaf order, point alike). At the first level they are found by descending
 /// from the root as that pass would ([`reach_marked`]: a cell taken from the neighbours may lie
-/// under a free cone or a guess); at the finer levels they are the marked ones among the cells
-/// `traced` (entries of [`CutScratch::traced`]), all quarters of cells reached.
-fn trace_marked(ctx: &mut Ctx, cell: usize, traced: std::ops::Range<usize>) {
+/// under a free cone or a guess); at the finer levels every marked cell is a quarter of a cell
+/// reached.
+fn trace_marked(ctx: &mut Ctx, cell: usize) {
     let mut cells = std::mem::take(&mut ctx.scratch.batch);
     cells.clear();
     if cell == ctx.cell_leaves {
         reach_marked(ctx, 0, false, &mut cells);
     } else {
-        for i in traced {
-            let (k, c) = ctx.scratch.traced[i];
-            let key = ctx.key(ctx.tree.nodes()[k as usize].first, cell);
-            if c as usize == cell && ctx.scratch.refine[key] == ctx.scratch.generation {
-                collect_cells(ctx, k as usize, cell, &mut cells);
-            }
+        for i in 0..ctx.scratch.marked.len() {
+            let k = ctx.scratch.marked[i].2;
+            collect_cells(ctx, k as usize, cell, &mut cells);
         }
     }
     trace_batch(ctx, &cells);
