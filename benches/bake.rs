@@ -153,8 +153,8 @@ fn energy() {
 /// diagonal along the normal) along the mean direction of every 5.625° visibility cell above its
 /// tangent plane (a 64-per-side direction set's light tree, cells of ≤ 12 leaves, in leaf order as
 /// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
-/// packets of 8 through its BVH2, and through Embree one at a time and in packets of 8 (the bake's
-/// tracer where the build has Embree), side by side.
+/// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8 and in packets
+/// of 16 (the bake's tracer where the build has Embree), side by side.
 fn rays() {
     use glam::{Vec3, Vec3A};
     use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};
@@ -212,13 +212,17 @@ fn rays() {
                     .sum::<usize>()
             })
         };
-        let packets = |tracer: &Tracer| {
+        let packets = |tracer: &Tracer, eight: bool| {
             median_of(3, || {
                 vertices
                     .par_iter()
                     .map(|(o, ds)| {
                         let mut out = vec![false; ds.len()];
-                        tracer.occluded_from(*o, ds, &mut out);
+                        if eight {
+                            tracer.occluded_from_8(*o, ds, &mut out);
+                        } else {
+                            tracer.occluded_from(*o, ds, &mut out);
+                        }
                         out.iter().filter(|&&h| h).count()
                     })
                     .sum::<usize>()
@@ -247,7 +251,7 @@ fn rays() {
         let t = Instant::now();
         let tracer = Tracer::with_backend(m, Backend::Obvhs);
         let build = t.elapsed().as_secs_f64();
-        let (secs, hits) = packets(&tracer);
+        let (secs, hits) = packets(&tracer, false);
         row(
             &format!("obvhs BVH2, packets of {PACKET}"),
             build,
@@ -260,9 +264,11 @@ fn rays() {
             let build = t.elapsed().as_secs_f64();
             let (secs, hits) = singles(&tracer);
             row("Embree 3, one ray at a time", build, secs, hits);
-            let (secs, hits) = packets(&tracer);
+            let (secs, hits) = packets(&tracer, true);
+            row("Embree 3, packets of 8", build, secs, hits);
+            let (secs, hits) = packets(&tracer, false);
             row(
-                &format!("Embree 3, packets of {PACKET} (the bake's tracer)"),
+                "Embree 3, packets of 16 (the bake's tracer)",
                 build,
                 secs,
                 hits,

@@ -12,8 +12,8 @@
 //!   (Ṽ = V·max(cos, 0)), and the vertex's own neighbourhood lies below its tangent plane wherever
 //!   the surface is locally convex.
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
-//!   visibility cells), traced as packets of [`PACKET`] rays: Embree's `rtcOccluded8`, or
-//!   obvhs's BVH2, where a node's bounds relative to the shared origin are computed once per
+//!   visibility cells), traced in packets: Embree's `rtcOccluded16` (packets of 16, the last
+//!   one of 8 where at most 8 rays are left), or obvhs's BVH2 in packets of [`PACKET`], where a node's bounds relative to the shared origin are computed once per
 //!   packet and a node is visited once for all the packet's rays that reach it. Rays of
 //!   neighbouring cells are nearly coherent, so a packet visits few more nodes than one of its
 //!   rays alone.
@@ -42,7 +42,7 @@ struct Sphere {
     radius: f32,
 }
 
-/// Rays per packet in [`Tracer::occluded_from`].
+/// Rays per packet in [`Tracer::occluded_from`] through obvhs's BVH2 (Embree's are 16).
 pub const PACKET: usize = 8;
 
 /// Which code traces [`Tracer::occluded`] and [`Tracer::occluded_from`] (the cone queries are
@@ -51,8 +51,8 @@ pub const PACKET: usize = 8;
 pub enum Backend {
     /// obvhs: single rays through a CWBVH, a vertex's rays in packets through the BVH2.
     Obvhs,
-    /// Intel Embree 3 (`rtcOccluded1`, and `rtcOccluded8` for a vertex's rays): 2–3× the rays per
-    /// second of obvhs on this project's meshes. Only where `build.rs` found the library.
+    /// Intel Embree 3 (`rtcOccluded1`, and `rtcOccluded16` for a vertex's rays): 2–4× the rays
+    /// per second of obvhs on this project's meshes. Only where `build.rs` found the library.
     Embree,
 }
 
@@ -291,6 +291,19 @@ impl Tracer {
                 *o = hit >> i & 1 == 1;
             }
         }
+    }
+
+    /// [`Tracer::occluded_from`] with Embree's packets of 8 (`rtcOccluded8`) where Embree traces,
+    /// for the benches' side by side; the same answers.
+    pub fn occluded_from_8(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        #[cfg(embree)]
+        if let (Rays::Embree(e), true, false) =
+            (&self.rays, self.packets, self.bvh2.nodes.is_empty())
+        {
+            e.occluded_from_8(origin, dirs, out);
+            return;
+        }
+        self.occluded_from(origin, dirs, out);
     }
 
     /// Bit i: ray i of the packet (at most [`PACKET`] rays) is occluded.
@@ -657,13 +670,15 @@ mod tests {
             assert_eq!(tracer.backend(), backend);
             let (mut n, mut hits, mut differ) = (0usize, 0usize, 0usize);
             for (origin, dirs) in &groups {
-                let mut out = vec![false; dirs.len()];
+                // Embree's packets of 16 (with a tail of 8) and of 8 alike.
+                let (mut out, mut out_8) = (vec![false; dirs.len()], vec![false; dirs.len()]);
                 tracer.occluded_from(*origin, dirs, &mut out);
-                for (d, &packet) in dirs.iter().zip(&out) {
+                tracer.occluded_from_8(*origin, dirs, &mut out_8);
+                for ((d, &packet), &packet_8) in dirs.iter().zip(&out).zip(&out_8) {
                     let single = tracer.occluded(*origin, *d);
                     n += 1;
                     hits += single as usize;
-                    differ += (single != packet) as usize;
+                    differ += (single != packet) as usize + (single != packet_8) as usize;
                 }
             }
             assert!(
