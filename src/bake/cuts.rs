@@ -711,15 +711,31 @@ impl Ctx<'_> {
 }
 
 /// Σ_i Ω_i c_i over the node's leaves, with Ω_i c_i = max(moment_i·n, 0) (exact for a leaf wholly
-/// above the horizon; the leaf's mean cosine otherwise).
+/// above the horizon; the leaf's mean cosine otherwise). A node of more than [`LEAF_SUM_MAX`]
+/// leaves is split by its children's cones: a child wholly above gives its moment's projection,
+/// one wholly below nothing, so only the band of leaves along the horizon is summed.
 fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
-    let node = tree.nodes()[k];
+    let node = &tree.nodes()[k];
+    if node.count as usize > LEAF_SUM_MAX && !node.is_leaf() {
+        let (max_cos, wholly_above) = node.horizon(n);
+        return if max_cos <= 0.0 {
+            0.0
+        } else if wholly_above {
+            node.moment.dot(n)
+        } else {
+            cosine_mass(tree, node.left as usize, n) + cosine_mass(tree, node.right as usize, n)
+        };
+    }
     let range = node.first as usize..(node.first + node.count) as usize;
     tree.leaf_moments()[range]
         .iter()
         .map(|m| m.dot(n).max(0.0))
         .sum()
 }
+
+/// Nodes of at most this many leaves have their cosine mass summed leaf by leaf
+/// ([`cosine_mass`]).
+const LEAF_SUM_MAX: usize = 1024;
 
 /// Σ_i Ω_i c_i over node `k`: its moment's projection when it lies wholly above the horizon, else
 /// its leaves' ([`cosine_mass`]); once per node and vertex (the later passes read it back).
@@ -1116,6 +1132,38 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cosine mass of nodes above [`LEAF_SUM_MAX`] leaves, split by the children's cones,
+    /// against the sum over every leaf (the definition): the same up to rounding, for the root and
+    /// random nodes under random normals, at 64 directions a side (root 24,576 leaves).
+    #[test]
+    fn split_cosine_mass_is_the_leaf_sum() {
+        let tree = LightTree::build(&DirectionSet::cube(64).unwrap());
+        let mut rng = crate::math::Rng::new(3);
+        let mut split = 0;
+        for trial in 0..400 {
+            let n = rng.unit_vector();
+            let k = if trial % 4 == 0 {
+                0
+            } else {
+                (rng.next_u64() % tree.nodes().len() as u64) as usize
+            };
+            let node = tree.nodes()[k];
+            let range = node.first as usize..(node.first + node.count) as usize;
+            let want: f64 = tree.leaf_moments()[range]
+                .iter()
+                .map(|m| m.dot(n).max(0.0))
+                .sum();
+            let got = cosine_mass(&tree, k, n);
+            assert!(
+                (got - want).abs() <= 1e-12 * node.solid_angle.max(1.0),
+                "node {k} ({} leaves), n {n:?}: {got} against {want}",
+                node.count
+            );
+            split += (node.count as usize > LEAF_SUM_MAX) as usize;
+        }
+        assert!(split >= 100, "{split} nodes split");
+    }
 
     /// The neighbour table against geometry: at each size, two cells are listed as neighbours
     /// exactly when some leaf of one lies within about a texel and a half (centre to centre) of a
