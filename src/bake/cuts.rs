@@ -153,10 +153,14 @@ pub struct CutScratch {
     visible: Vec<bool>,
     /// Cells marked for boundary refinement (stamped with the generation).
     refine: Vec<u32>,
-    /// Cells traced for the current vertex (boundary refinement only): (node, cell size).
-    traced: Vec<(u32, u32)>,
-    /// Cells to trace in one batch ([`trace_cells`]), kept to reuse its allocation.
-    batch: Vec<(u32, u32)>,
+    /// Cells traced for the current vertex (boundary refinement only): (node, cell size, scratch
+    /// key), so that the marking reads no tree node for them.
+    traced: Vec<(u32, u32, u32)>,
+    /// Cells to trace in one batch ([`trace_cells`]): (node, cell size, scratch key), with their
+    /// rays' directions and answers beside them; kept to reuse the allocations.
+    batch: Vec<(u32, u32, u32)>,
+    batch_dirs: Vec<Vec3A>,
+    batch_occluded: Vec<bool>,
     /// Cells marked at one level with the light they gate ([`mark_boundaries`]), kept likewise.
     gated: Vec<(f64, usize)>,
     /// Per tree node, its cosine mass for the current vertex ([`node_weight`]), computed once and
@@ -201,6 +205,8 @@ impl CutScratch {
             refine: vec![0; n],
             traced: Vec::new(),
             batch: Vec::new(),
+            batch_dirs: Vec::new(),
+            batch_occluded: Vec::new(),
             gated: Vec::new(),
             weight: Vec::new(),
             weight_stamp: Vec::new(),
@@ -482,18 +488,17 @@ fn mark_boundaries(
     gate: Option<LightGate>,
 ) -> bool {
     let (tree, base, n) = (ctx.tree, ctx.key(0, cell), ctx.n);
-    let key = |k: u32| base + tree.nodes()[k as usize].first as usize;
     let scratch = &mut *ctx.scratch;
     let generation = scratch.generation;
     let budget = gate.map_or(0.0, |g| ctx.budget * g.total);
     scratch.gated.clear();
     let mut marked = 0usize;
     for i in from..scratch.traced.len() {
-        let (k, c) = scratch.traced[i];
+        let (k, c, own) = scratch.traced[i];
         if c as usize != cell {
             continue;
         }
-        let own = key(k);
+        let own = own as usize;
         let v = scratch.visible[own];
         if neighbours.firsts_of(k as usize).iter().any(|&first| {
             let m = base + first as usize;
@@ -525,8 +530,8 @@ fn mark_boundaries(
     // The marked cells' leaf ranges, for the next pass's memos.
     scratch.marked.clear();
     for i in from..scratch.traced.len() {
-        let (k, c) = scratch.traced[i];
-        if c as usize == cell && scratch.refine[key(k)] == generation {
+        let (k, c, own) = scratch.traced[i];
+        if c as usize == cell && scratch.refine[own as usize] == generation {
             let node = &tree.nodes()[k as usize];
             scratch
                 .marked
@@ -605,7 +610,9 @@ pub fn vertex_cut(
             scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
             if settings.boundary_levels > 0 {
                 // Taken as traced, so that a shadow edge beside it is refined (with rays).
-                scratch.traced.push((k, settings.cell_leaves.max(1) as u32));
+                scratch
+                    .traced
+                    .push((k, settings.cell_leaves.max(1) as u32, first));
             }
         }
     }
@@ -952,32 +959,50 @@ fn forget_memos(ctx: &mut Ctx, start: usize) {
 /// split where marked for refinement) and has not been traced yet, and caches the answers: the
 /// cells come in leaf order, so a packet's rays point alike.
 fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
-    let mut cells = std::mem::take(&mut ctx.scratch.batch);
-    cells.clear();
+    let mut cells = take_batch(ctx);
     collect_cells(ctx, k, cell, &mut cells);
-    trace_batch(ctx, &cells);
-    ctx.scratch.batch = cells;
+    trace_batch(ctx, cells);
 }
 
-/// Traces `cells` (node, cell size), in that order, in packets ([`Tracer::occluded_from`]), and
-/// caches the answers.
-fn trace_batch(ctx: &mut Ctx, cells: &[(u32, u32)]) {
-    let dirs: Vec<Vec3A> = cells
-        .iter()
-        .map(|&(k, _)| ctx.tree.nodes()[k as usize].mean_direction.as_vec3().into())
-        .collect();
-    let mut occluded = vec![false; cells.len()];
-    ctx.tracer.occluded_from(ctx.apex, &dirs, &mut occluded);
-    for (&(k, cell), occluded) in cells.iter().zip(occluded) {
-        let key = ctx.key(ctx.tree.nodes()[k as usize].first, cell as usize);
-        let s = &mut *ctx.scratch;
+/// The scratch's batch lists, emptied, for [`collect_cells`] to fill and [`trace_batch`] to trace.
+fn take_batch(ctx: &mut Ctx) -> Batch {
+    let s = &mut *ctx.scratch;
+    let mut batch = Batch {
+        cells: std::mem::take(&mut s.batch),
+        dirs: std::mem::take(&mut s.batch_dirs),
+    };
+    batch.cells.clear();
+    batch.dirs.clear();
+    batch
+}
+
+/// Cells to trace: (node, cell size, scratch key), and each one's ray direction (its node's mean
+/// direction).
+struct Batch {
+    cells: Vec<(u32, u32, u32)>,
+    dirs: Vec<Vec3A>,
+}
+
+/// Traces the batch's cells, in that order, in packets ([`Tracer::occluded_from`]), caches the
+/// answers, and gives the lists back to the scratch.
+fn trace_batch(ctx: &mut Ctx, batch: Batch) {
+    let s = &mut *ctx.scratch;
+    let mut occluded = std::mem::take(&mut s.batch_occluded);
+    occluded.clear();
+    occluded.resize(batch.cells.len(), false);
+    ctx.tracer
+        .occluded_from(ctx.apex, &batch.dirs, &mut occluded);
+    for (&(k, cell, key), &occluded) in batch.cells.iter().zip(&occluded) {
         if ctx.boundary_levels > 0 {
-            s.traced.push((k, cell));
+            s.traced.push((k, cell, key));
         }
-        s.stamp[key] = s.generation;
-        s.visible[key] = !occluded;
+        s.stamp[key as usize] = s.generation;
+        s.visible[key as usize] = !occluded;
     }
-    ctx.rays += cells.len() as u64;
+    ctx.rays += batch.cells.len() as u64;
+    s.batch = batch.cells;
+    s.batch_dirs = batch.dirs;
+    s.batch_occluded = occluded;
 }
 
 /// Traces the quarters of every cell of size `cell` that the last [`mark_boundaries`] marked, of
@@ -988,8 +1013,7 @@ fn trace_batch(ctx: &mut Ctx, cells: &[(u32, u32)]) {
 /// under a free cone or a guess); at the finer levels every marked cell is a quarter of a cell
 /// reached.
 fn trace_marked(ctx: &mut Ctx, cell: usize) {
-    let mut cells = std::mem::take(&mut ctx.scratch.batch);
-    cells.clear();
+    let mut cells = take_batch(ctx);
     if cell == ctx.cell_leaves {
         reach_marked(ctx, 0, false, &mut cells);
     } else {
@@ -998,14 +1022,13 @@ fn trace_marked(ctx: &mut Ctx, cell: usize) {
             collect_cells(ctx, k as usize, cell, &mut cells);
         }
     }
-    trace_batch(ctx, &cells);
-    ctx.scratch.batch = cells;
+    trace_batch(ctx, cells);
 }
 
 /// The quarters of the cells of the first level that [`mark_boundaries`] marked, where the pass
 /// after it reaches them: the descent of [`build`] in a boundary pass (below the horizon, a free
 /// cone or a guess ends it) into the subtrees that hold a marked cell.
-fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Vec<(u32, u32)>) {
+fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
     let node = ctx.tree.nodes()[k];
     let (max_cos, wholly_above) = node.horizon(ctx.n);
     if max_cos <= 0.0 || !marked_within(&ctx.scratch.marked, node.first, node.first + node.count) {
@@ -1033,8 +1056,8 @@ fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Vec<(u32, u32)>)
     reach_marked(ctx, node.right as usize, known, out);
 }
 
-/// The cells [`trace_cells`] traces, in leaf order: (node, cell size).
-fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>) {
+/// The cells [`trace_cells`] traces, in leaf order.
+fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     let node = ctx.tree.nodes()[k];
     let (max_cos, wholly_above) = node.horizon(ctx.n);
     if max_cos <= 0.0 {
@@ -1043,8 +1066,10 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Vec<(u32, u32)>
     let cell = cell_size(ctx, &node, cell);
     if node.is_leaf() || node.count as usize <= cell {
         let w = node_weight(ctx, k, wholly_above);
-        if w > 0.0 && ctx.scratch.stamp[ctx.key(node.first, cell)] != ctx.scratch.generation {
-            out.push((k as u32, cell as u32));
+        let key = ctx.key(node.first, cell);
+        if w > 0.0 && ctx.scratch.stamp[key] != ctx.scratch.generation {
+            out.cells.push((k as u32, cell as u32, key as u32));
+            out.dirs.push(node.mean_direction.as_vec3().into());
         }
         return;
     }
@@ -1119,7 +1144,7 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
         return s.visible[key];
     }
     if ctx.boundary_levels > 0 {
-        s.traced.push((k as u32, cell as u32));
+        s.traced.push((k as u32, cell as u32, key as u32));
     }
     let d = node.mean_direction;
     let visible = !ctx.tracer.occluded(ctx.apex, d.as_vec3().into());
