@@ -156,11 +156,8 @@ pub struct CutScratch {
     /// Cells traced for the current vertex (boundary refinement only): (node, cell size, scratch
     /// key), so that the marking reads no tree node for them.
     traced: Vec<(u32, u32, u32)>,
-    /// Cells to trace in one batch ([`trace_cells`]): (node, cell size, scratch key), with their
-    /// rays' directions and answers beside them; kept to reuse the allocations.
-    batch: Vec<(u32, u32, u32)>,
-    batch_dirs: Vec<Vec3A>,
-    batch_occluded: Vec<bool>,
+    /// Cells to trace in one batch ([`trace_cells`]), kept to reuse its allocations.
+    batch: Batch,
     /// Cells marked at one level with the light they gate ([`mark_boundaries`]), kept likewise.
     gated: Vec<(f64, usize)>,
     /// Per tree node, its cosine mass for the current vertex ([`node_weight`]), computed once and
@@ -204,9 +201,7 @@ impl CutScratch {
             visible: vec![false; n],
             refine: vec![0; n],
             traced: Vec::new(),
-            batch: Vec::new(),
-            batch_dirs: Vec::new(),
-            batch_occluded: Vec::new(),
+            batch: Batch::default(),
             gated: Vec::new(),
             weight: Vec::new(),
             weight_stamp: Vec::new(),
@@ -964,35 +959,32 @@ fn trace_cells(ctx: &mut Ctx, k: usize, cell: usize) {
     trace_batch(ctx, cells);
 }
 
-/// The scratch's batch lists, emptied, for [`collect_cells`] to fill and [`trace_batch`] to trace.
+/// The scratch's batch, emptied, for [`collect_cells`] to fill and [`trace_batch`] to trace.
 fn take_batch(ctx: &mut Ctx) -> Batch {
-    let s = &mut *ctx.scratch;
-    let mut batch = Batch {
-        cells: std::mem::take(&mut s.batch),
-        dirs: std::mem::take(&mut s.batch_dirs),
-    };
+    let mut batch = std::mem::take(&mut ctx.scratch.batch);
     batch.cells.clear();
     batch.dirs.clear();
     batch
 }
 
-/// Cells to trace: (node, cell size, scratch key), and each one's ray direction (its node's mean
-/// direction).
+/// Cells to trace: (node, cell size, scratch key), each one's ray direction (its node's mean
+/// direction) and, once traced, whether the ray was occluded.
+#[derive(Default)]
 struct Batch {
     cells: Vec<(u32, u32, u32)>,
     dirs: Vec<Vec3A>,
+    occluded: Vec<bool>,
 }
 
 /// Traces the batch's cells, in that order, in packets ([`Tracer::occluded_from`]), caches the
-/// answers, and gives the lists back to the scratch.
-fn trace_batch(ctx: &mut Ctx, batch: Batch) {
-    let s = &mut *ctx.scratch;
-    let mut occluded = std::mem::take(&mut s.batch_occluded);
-    occluded.clear();
-    occluded.resize(batch.cells.len(), false);
+/// answers, and gives the batch back to the scratch.
+fn trace_batch(ctx: &mut Ctx, mut batch: Batch) {
+    batch.occluded.clear();
+    batch.occluded.resize(batch.cells.len(), false);
     ctx.tracer
-        .occluded_from(ctx.apex, &batch.dirs, &mut occluded);
-    for (&(k, cell, key), &occluded) in batch.cells.iter().zip(&occluded) {
+        .occluded_from(ctx.apex, &batch.dirs, &mut batch.occluded);
+    let s = &mut *ctx.scratch;
+    for (&(k, cell, key), &occluded) in batch.cells.iter().zip(&batch.occluded) {
         if ctx.boundary_levels > 0 {
             s.traced.push((k, cell, key));
         }
@@ -1000,9 +992,7 @@ fn trace_batch(ctx: &mut Ctx, batch: Batch) {
         s.visible[key as usize] = !occluded;
     }
     ctx.rays += batch.cells.len() as u64;
-    s.batch = batch.cells;
-    s.batch_dirs = batch.dirs;
-    s.batch_occluded = occluded;
+    s.batch = batch;
 }
 
 /// Traces the quarters of every cell of size `cell` that the last [`mark_boundaries`] marked, of

@@ -221,15 +221,12 @@ impl EmbreeTracer {
     /// but a half-empty 16 cost the bunny's bake under interior_1k, whose boundary levels trace
     /// a few quarters at a time, ~10 % (4 alternating pairs).
     pub fn occluded_from(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
-        let whole = dirs.len() / 16 * 16;
-        let (dirs, tail) = dirs.split_at(whole);
-        let (out, out_tail) = out.split_at_mut(whole);
+        let n = dirs.len();
+        let sixteens = if n % 16 > 8 { n } else { n / 16 * 16 };
+        let (dirs, tail) = dirs.split_at(sixteens);
+        let (out, out_tail) = out.split_at_mut(sixteens);
         self.occluded_packets::<16>(rtcOccluded16, origin, dirs, out);
-        if tail.len() > 8 {
-            self.occluded_packets::<16>(rtcOccluded16, origin, tail, out_tail);
-        } else {
-            self.occluded_packets::<8>(rtcOccluded8, origin, tail, out_tail);
-        }
+        self.occluded_packets::<8>(rtcOccluded8, origin, tail, out_tail);
     }
 
     /// [`EmbreeTracer::occluded_from`] in packets of 8 (`rtcOccluded8`), for the benches' side by

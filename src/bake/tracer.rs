@@ -13,8 +13,9 @@
 //!   the surface is locally convex.
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
 //!   visibility cells), traced in packets: Embree's `rtcOccluded16` (packets of 16, the last
-//!   one of 8 where at most 8 rays are left), or obvhs's BVH2 in packets of [`PACKET`], where a node's bounds relative to the shared origin are computed once per
-//!   packet and a node is visited once for all the packet's rays that reach it. Rays of
+//!   one of 8 where at most 8 rays are left), or obvhs's BVH2 in packets of [`PACKET`], where a
+//!   node's bounds relative to the shared origin are computed once per packet and a node is
+//!   visited once for all the packet's rays that reach it. Rays of
 //!   neighbouring cells are nearly coherent, so a packet visits few more nodes than one of its
 //!   rays alone.
 //!
