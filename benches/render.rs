@@ -70,15 +70,16 @@ fn main() {
     #[cfg(feature = "gui")]
     if std::env::args().any(|a| a == "still") {
         let args: Vec<String> = std::env::args().collect();
-        let spp = args
-            .iter()
-            .position(|a| a == "--spp")
-            .map(|i| {
-                args.get(i + 1)
-                    .and_then(|n| n.parse().ok())
-                    .expect("--spp takes a whole number of samples")
-            })
-            .unwrap_or(1024);
+        let spp = match args.iter().position(|a| a == "--spp") {
+            None => 1024,
+            Some(i) => match args.get(i + 1).and_then(|n| n.parse().ok()) {
+                Some(n) => n,
+                None => {
+                    eprintln!("render bench: --spp takes a whole number of samples");
+                    std::process::exit(2);
+                }
+            },
+        };
         still_frames(&shading, spp);
         return;
     }
