@@ -13,6 +13,12 @@
 //! 640×480 and measured against the Monte Carlo reference at 320×240 (2 × 1024 spp; the reference's
 //! own noise, estimated from its two halves, is printed beside the errors); `-- still` runs only
 //! that table, and `-- still --spp N` takes 2 × N spp for the reference (a less noisy one).
+//!
+//! `-- gpu` runs only the wgpu preview's frame rate, as the app drives it (`app::engine`): the
+//! app's preview settings, the camera orbiting so that every frame shades the vertices anew, at
+//! 640×480 to 3840×2160. Per size: the app's frame (shade, raster, readback into an image, waited
+//! for), the frame without readback (100 frames submitted back to back, then one wait: what the
+//! GPU sustains), and a light rotation (light sums on the CPU, upload, frame).
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -81,6 +87,15 @@ fn main() {
             },
         };
         still_frames(&shading, spp);
+        return;
+    }
+    // `cargo bench --bench render -- gpu`: the wgpu preview's frame rate table only.
+    #[cfg(feature = "gui")]
+    if std::env::args().any(|a| a == "gpu") {
+        if let Err(e) = gpu_frames(&table) {
+            eprintln!("render bench: {e}");
+            std::process::exit(1);
+        }
         return;
     }
     let mut gpu_rows = Vec::new();
@@ -368,4 +383,105 @@ fn still_frames(shading: &Shading, spp: u32) {
             100.0 * less(err(&still)),
         );
     }
+}
+
+/// The wgpu preview's frame rate as the app drives it (see the module docs, `-- gpu`).
+#[cfg(feature = "gui")]
+fn gpu_frames(table: &PhPyramid) -> Result<(), Box<dyn std::error::Error>> {
+    use glint::app::engine::preview_settings;
+    use glint::light::LightSource;
+    use glint::scene::orbit_camera;
+    let ctx = glint::gpu::GpuContext::headless()?;
+    let software = ctx.info.device_type == wgpu::DeviceType::Cpu;
+    println!(
+        "adapter: {}; {} CPU threads",
+        ctx.describe(),
+        rayon::current_num_threads()
+    );
+    println!();
+    println!(
+        "| scene | vertices | triangles | size | app frame with readback (ms) | fps | frame without readback, 100 back to back (ms) | fps | light rotation: sums + upload + frame (ms) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (mesh, env) in [
+        ("bunny", "hdr/small/studio_512.exr"),
+        ("dragon_100k", "hdr/courtyard_1k.exr"),
+    ] {
+        let imported = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+        let env = glint::env::load(&common::assets().join(env))?;
+        let baker = Baker::new(&imported, &env, BakeSettings::default())?;
+        let bake = baker.bake_refined(None, &|_| {});
+        let scene = bake.scene(&imported)?;
+        let source = LightSource::new(&env);
+        let t0 = Instant::now();
+        let mut preview = glint::gpu::GpuPreview::new(
+            &ctx,
+            &scene.mesh,
+            &bake.cuts,
+            &baker.tree,
+            None,
+            preview_settings(true),
+        )?;
+        preview.set_material([0.5; 3], 0.04, Some(table))?;
+        preview.set_light(
+            &LightSums::from_source(&source, &baker.set, &baker.tree, 0.0),
+            &baker.tree,
+        )?;
+        let upload = t0.elapsed().as_secs_f64();
+        let vertices = scene.mesh.positions.len();
+        let triangles = scene.mesh.triangles.len();
+        let sizes: &[(u32, u32)] = if software {
+            &[(640, 480)]
+        } else {
+            &[(640, 480), (1280, 720), (1920, 1080), (3840, 2160)]
+        };
+        for &(w, h) in sizes {
+            // The camera turns 1° a frame about the object: each frame shades every vertex anew.
+            let camera = |i: usize| orbit_camera(&scene.bounds, i as f32, 20.0, 0.0, w, h);
+            preview.render(&camera(0), w, h)?;
+            let frames = if software { 1 } else { 30 };
+            let mut app = Vec::with_capacity(frames);
+            for i in 0..frames {
+                let t = Instant::now();
+                std::hint::black_box(preview.render(&camera(i), w, h)?);
+                app.push(t.elapsed().as_secs_f64());
+            }
+            let app = median(app);
+            let burst = if software { 1 } else { 100 };
+            let mut sustained = Vec::new();
+            for _ in 0..if software { 1 } else { 3 } {
+                let t = Instant::now();
+                for i in 0..burst {
+                    preview.draw(&camera(i), w, h)?;
+                }
+                ctx.device.poll(wgpu::PollType::wait_indefinitely())?;
+                sustained.push(t.elapsed().as_secs_f64() / burst as f64);
+            }
+            let sustained = median(sustained);
+            let mut rotation = Vec::new();
+            for i in 1..=if software { 1 } else { 5 } {
+                let t = Instant::now();
+                let light = LightSums::from_source(
+                    &source,
+                    &baker.set,
+                    &baker.tree,
+                    (10.0 * i as f64).to_radians(),
+                );
+                preview.set_light(&light, &baker.tree)?;
+                std::hint::black_box(preview.render(&camera(0), w, h)?);
+                rotation.push(t.elapsed().as_secs_f64());
+            }
+            let rotation = median(rotation);
+            println!(
+                "| {mesh} | {vertices} | {triangles} | {w}×{h} | {:.2} | {:.0} | {:.3} | {:.0} | {:.1} |",
+                app * 1e3,
+                1.0 / app,
+                sustained * 1e3,
+                1.0 / sustained,
+                rotation * 1e3
+            );
+        }
+        println!("(upload of {mesh}'s bake, material and light: {:.0} ms)", upload * 1e3);
+    }
+    Ok(())
 }

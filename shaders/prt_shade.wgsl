@@ -1,4 +1,4 @@
-// prt_shade.wgsl — the per-vertex PRT sum of eq. 22 (method.md §7), one invocation per mesh vertex.
+// prt_shade.wgsl — the per-vertex PRT sum of eq. 22 (method.md §7), one workgroup per mesh vertex.
 //
 // BRDF convention (stated once in src/brdf/mod.rs, repeated here): f_r(wi, wo) = ρd/π + p(h)·s(wi, wo)
 // WITHOUT the cosine; local frame z = normal, x = tangent; s = F_schlick(wi·h) / (4·(k1 + k2·(1 − k1))),
@@ -8,7 +8,8 @@
 // with V) walked together with the render partition, exactly as `bake::runs::for_each_run` does with
 // one list and `render::prt::Prt::shade_point` does per run. Every run is one light-tree node (cut and
 // partition nodes are nested or disjoint), so its light is read per node from `light`.
-// One flat loop, no nested ones: llvmpipe's 65,535-iteration budget is shared by all loops (`shade`).
+// Per lane a bisection and one flat loop, no nested ones: llvmpipe's 65,535-iteration budget is
+// shared by all loops (`shade_block`).
 //
 // Must match: the Rust mirrors in src/gpu/uniforms.rs (ShadeUniforms, GpuVertex, CutEntry,
 // PartitionEntry, GpuLeaf, NodeLight) and the CPU reference src/render/prt.rs.
@@ -47,6 +48,8 @@ const LEVEL_STEP_OCTAVES: f32 = 0.5;
 const DENOMINATOR_FLOOR: f32 = 1e-12;
 const LUMINANCE: vec3<f32> = vec3<f32>(0.2126, 0.7152, 0.0722);
 const INV_PI: f32 = 0.31830988618379067;
+// Invocations per vertex (the workgroup size).
+const LANES: u32 = 64u;
 
 @group(0) @binding(0) var<uniform> u: ShadeUniforms;
 @group(0) @binding(1) var<storage, read> vertices: array<GpuVertex>;
@@ -325,19 +328,64 @@ fn shade_run(node: u32, vis: f32, cos_power: vec3<f32>, n: vec3<f32>, frame: Fra
     return result;
 }
 
+// A vertex's lanes: each sums the runs of its block of partition nodes, then the lanes add up.
+var<workgroup> lane_e: array<vec4<f32>, LANES>;
+var<workgroup> lane_spec: array<vec4<f32>, LANES>;
+
+// One workgroup per vertex (the grid is 2D past 65,535 vertices: v = x + y · groups in x). Lane l walks
+// the partition nodes [l·P/LANES, (l+1)·P/LANES): the runs are cut at partition boundaries anyway, so
+// the blocks' runs are the whole walk's runs. A vertex's walk is a few thousand dependent steps (its
+// runs and the leaves astride its horizon); spread over the lanes, a frame no longer waits for the
+// longest walk done alone (docs/benchmarks.md, "The wgpu preview on a GPU").
 @compute @workgroup_size(64)
-fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let v = gid.x;
-    if v >= u.counts.x {
-        return;
+fn shade(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let v = group.x + group.y * groups.x;
+    var e = vec3<f32>(0.0);
+    var spec = vec3<f32>(0.0);
+    var lit = false;
+    if v < u.counts.x {
+        let vertex = vertices[v];
+        let n_len = length(vertex.normal.xyz);
+        if n_len > 0.0 {
+            lit = true;
+            let r = shade_block(vertex, vertex.normal.xyz / n_len, v, lane);
+            e = r.e;
+            spec = r.spec;
+        }
     }
-    let vertex = vertices[v];
-    let n_len = length(vertex.normal.xyz);
-    if !(n_len > 0.0) {
-        radiance[v] = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-        return;
+    lane_e[lane] = vec4<f32>(e, 0.0);
+    lane_spec[lane] = vec4<f32>(spec, 0.0);
+    workgroupBarrier();
+    for (var stride = LANES / 2u; stride > 0u; stride = stride / 2u) {
+        if lane < stride {
+            lane_e[lane] += lane_e[lane + stride];
+            lane_spec[lane] += lane_spec[lane + stride];
+        }
+        workgroupBarrier();
     }
-    let n = vertex.normal.xyz / n_len;
+    if lane == 0u && v < u.counts.x {
+        var out = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        if lit {
+            out = vec4<f32>(u.rho_d_f0.xyz * INV_PI * lane_e[0].xyz + lane_spec[0].xyz, 1.0);
+        }
+        radiance[v] = out;
+    }
+}
+
+// What lane `lane` of vertex `v` (unit normal `n`) adds: the irradiance (e) and specular radiance of the
+// runs inside its block of partition nodes.
+fn shade_block(vertex: GpuVertex, n: vec3<f32>, v: u32, lane: u32) -> RunShade {
+    var result = RunShade(vec3<f32>(0.0), vec3<f32>(0.0));
+    let partition_count = u.counts.z;
+    let first_part = lane * partition_count / LANES;
+    let end_part = (lane + 1u) * partition_count / LANES;
+    if first_part >= end_part {
+        return result;
+    }
     let flags = u.table.y;
     var frame: Frame;
     if (flags & FLAG_TANGENTS) != 0u {
@@ -356,16 +404,26 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     let specular_on = (flags & FLAG_SPECULAR) != 0u && wo.z > 0.0;
     let prefilter = (flags & FLAG_PREFILTER) != 0u;
     let f0 = u.rho_d_f0.w;
-    let leaf_count = u.counts.y;
-    let partition_count = u.counts.z;
     let leaf_light = 3u * u.counts.w;
 
-    var e = vec3<f32>(0.0);
-    var spec = vec3<f32>(0.0);
-    var pos = 0u;
-    var si = 0u;
+    var pos = render_partition[first_part].range.x;
+    let end = render_partition[end_part - 1u].range.y;
+    var si = first_part;
+    // The first cut entry that ends after `pos`, by bisection.
     var idx = cut_offsets[v];
-    let idx_end = cut_offsets[v + 1u];
+    var hi = cut_offsets[v + 1u];
+    let idx_end = hi;
+    loop {
+        if idx >= hi {
+            break;
+        }
+        let mid = (idx + hi) / 2u;
+        if cut_entries[mid].y <= pos {
+            idx = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
     // A run astride the horizon, summed one leaf per iteration: leaves [leaf, run_end) still to go.
     var leaf = 0u;
     var run_end = 0u;
@@ -377,7 +435,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     // (LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop and counted per SIMD group of 8 invocations),
     // so nested loops, whose iterations add up over the group's union of horizon nodes, lost runs at 8°
     // partitions (the white furnace 0.55 off). Here a group takes as many iterations as its busiest
-    // invocation: its runs plus the leaves of its nodes astride the horizon (a few thousand).
+    // invocation: its runs plus the leaves of its nodes astride the horizon.
     loop {
         if leaf < run_end {
             let ci = leaf_cosine_integral(leaf, n);
@@ -387,19 +445,19 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             leaf++;
             if leaf == run_end {
                 let r = shade_run(run_node, run_vis, run_cos, n, frame, wo, specular_on, prefilter, f0);
-                e += r.e;
-                spec += r.spec;
+                result.e += r.e;
+                result.spec += r.spec;
             }
             continue;
         }
-        if pos >= leaf_count {
+        if pos >= end {
             break;
         }
         // Runs end at partition and cut boundaries, so each step passes at most one of each.
-        if si < partition_count && render_partition[si].range.y <= pos {
+        if si < end_part && render_partition[si].range.y <= pos {
             si++;
         }
-        if si >= partition_count {
+        if si >= end_part {
             break;
         }
         let part = render_partition[si];
@@ -442,8 +500,8 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             let m = node_moments(node);
             let cos_power = max(vec3<f32>(dot(m.r.xyz, n), dot(m.g.xyz, n), dot(m.b.xyz, n)), vec3<f32>(0.0));
             let r = shade_run(node, vis, cos_power, n, frame, wo, specular_on, prefilter, f0);
-            e += r.e;
-            spec += r.spec;
+            result.e += r.e;
+            result.spec += r.spec;
         } else {
             leaf = a;
             run_end = z;
@@ -452,5 +510,5 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             run_cos = vec3<f32>(0.0);
         }
     }
-    radiance[v] = vec4<f32>(u.rho_d_f0.xyz * INV_PI * e + spec, 1.0);
+    return result;
 }

@@ -76,15 +76,18 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
 /// Mesa's lavapipe: it ends all of a shader's loops once 65,535 iterations have run in total
 /// (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by every loop and counted per SIMD group of invocations),
 /// silently. Nested loops made the preview drop runs at 8° partitions (white furnace 0.55 off) and
-/// darken one bunny vertex with a 408-node cut by 5 %, so `prt_shade.wgsl` runs one flat loop.
+/// darken one bunny vertex with a 408-node cut by 5 %, so each lane of `prt_shade.wgsl` runs one
+/// flat loop.
 pub const SOFTWARE_LOOP_BUDGET: u64 = 65_535;
 
-/// An upper bound on the iterations of `prt_shade.wgsl`'s loop for any vertex: a step per run or
-/// gap (at most one per partition node and two per cut entry) plus one per leaf summed astride the
-/// horizon (at most every leaf once). Direction sets up to 64 texels per side (24,576 leaves) stay
+/// An upper bound on the loop iterations of one lane of `prt_shade.wgsl`'s `shade_block`, and of a
+/// SIMD group of lanes of one vertex (its flat loop runs as long as its busiest lane): the bisection
+/// for the first cut entry (at most 33 steps), then a step per run or gap (at most one per partition
+/// node and two per cut entry) plus one per leaf summed astride the horizon (at most every leaf
+/// once), plus the lanes' sum (6 steps). Direction sets up to 64 texels per side (24,576 leaves) stay
 /// under [`SOFTWARE_LOOP_BUDGET`] whatever the partition.
 fn loop_iterations_bound(partition_nodes: usize, max_cut: usize, leaves: usize) -> u64 {
-    (partition_nodes + 2 * max_cut + leaves) as u64
+    (33 + partition_nodes + 2 * max_cut + leaves + 6) as u64
 }
 
 impl GpuPreview {
@@ -103,11 +106,11 @@ impl GpuPreview {
         let device = &ctx.device;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let vertex_count = mesh.positions.len();
-        let max_groups =
-            ctx.limits.max_compute_workgroups_per_dimension as u64 * SHADE_WORKGROUP as u64;
+        // One workgroup per vertex, on a 2D grid (see `encode_shade`).
+        let max_groups = (ctx.limits.max_compute_workgroups_per_dimension as u64).pow(2);
         if vertex_count as u64 > max_groups {
             return Err(GpuError::Limit {
-                what: "one invocation per vertex",
+                what: "one workgroup per vertex",
                 needed: vertex_count as u64,
                 allowed: max_groups,
             });
@@ -470,7 +473,12 @@ impl GpuPreview {
         });
         pass.set_pipeline(&self.shade_pipeline);
         pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(self.vertex_count.div_ceil(SHADE_WORKGROUP).max(1), 1, 1);
+        // One workgroup per vertex: x up to the device's limit, y as many rows as that takes (the
+        // shader reads v = x + y · groups in x; `new` checked that the grid fits).
+        let width = self
+            .vertex_count
+            .clamp(1, self.ctx.limits.max_compute_workgroups_per_dimension.max(1));
+        pass.dispatch_workgroups(width, self.vertex_count.div_ceil(width).max(1), 1);
         Ok(())
     }
 

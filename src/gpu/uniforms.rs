@@ -17,7 +17,8 @@ pub const FLAG_SPECULAR: u32 = 1;
 pub const FLAG_PREFILTER: u32 = 2;
 /// Vertices carry tangents; build the frame from them (must match `FLAG_TANGENTS`).
 pub const FLAG_TANGENTS: u32 = 4;
-/// Invocations per workgroup of `shade` (must match `@workgroup_size`).
+/// Invocations per workgroup of `shade`, which is one vertex's lanes (must match `@workgroup_size`
+/// and `LANES`).
 pub const SHADE_WORKGROUP: u32 = 64;
 
 /// Must match `ShadeUniforms` in prt_shade.wgsl.
@@ -127,6 +128,7 @@ mod tests {
             );
         }
         assert!(shade.contains(&format!("@workgroup_size({SHADE_WORKGROUP})")));
+        assert!(shade.contains(&format!("const LANES: u32 = {SHADE_WORKGROUP}u;")));
         assert!(shade.contains(&format!("levels: array<vec4<u32>, {MAX_TABLE_LEVELS}>")));
     }
 }
