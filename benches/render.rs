@@ -481,7 +481,10 @@ fn gpu_frames(table: &PhPyramid) -> Result<(), Box<dyn std::error::Error>> {
                 rotation * 1e3
             );
         }
-        println!("(upload of {mesh}'s bake, material and light: {:.0} ms)", upload * 1e3);
+        println!(
+            "(upload of {mesh}'s bake, material and light: {:.0} ms)",
+            upload * 1e3
+        );
     }
     Ok(())
 }

@@ -475,9 +475,10 @@ impl GpuPreview {
         pass.set_bind_group(0, &bind, &[]);
         // One workgroup per vertex: x up to the device's limit, y as many rows as that takes (the
         // shader reads v = x + y · groups in x; `new` checked that the grid fits).
-        let width = self
-            .vertex_count
-            .clamp(1, self.ctx.limits.max_compute_workgroups_per_dimension.max(1));
+        let width = self.vertex_count.clamp(
+            1,
+            self.ctx.limits.max_compute_workgroups_per_dimension.max(1),
+        );
         pass.dispatch_workgroups(width, self.vertex_count.div_ceil(width).max(1), 1);
         Ok(())
     }
