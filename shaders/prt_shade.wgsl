@@ -328,15 +328,17 @@ fn shade_run(node: u32, vis: f32, cos_power: vec3<f32>, n: vec3<f32>, frame: Fra
     return result;
 }
 
-// A vertex's lanes: each sums the runs of its block of partition nodes, then the lanes add up.
+// A vertex's lanes: each sums the runs of its share of the partition nodes, then the lanes add up.
 var<workgroup> lane_e: array<vec4<f32>, LANES>;
 var<workgroup> lane_spec: array<vec4<f32>, LANES>;
 
 // One workgroup per vertex (the grid is 2D past 65,535 vertices: v = x + y · groups in x). Lane l walks
-// the partition nodes [l·P/LANES, (l+1)·P/LANES): the runs are cut at partition boundaries anyway, so
-// the blocks' runs are the whole walk's runs. A vertex's walk is a few thousand dependent steps (its
-// runs and the leaves astride its horizon); spread over the lanes, a frame no longer waits for the
-// longest walk done alone (docs/benchmarks.md, "The wgpu preview on a GPU").
+// the partition nodes l, l + LANES, l + 2·LANES, …: the runs are cut at partition boundaries anyway, so
+// the lanes' runs are the whole walk's runs. A vertex's walk is a few thousand dependent steps (its
+// runs and the leaves astride its horizon); spread over the lanes, a frame does not wait for the
+// longest walk done alone. Every LANES-th node rather than a contiguous block per lane, because the
+// nodes astride the horizon lie together in leaf order and a block would give them to a few lanes
+// (docs/benchmarks.md, "The wgpu preview on a GPU").
 @compute @workgroup_size(64)
 fn shade(
     @builtin(workgroup_id) group: vec3<u32>,
@@ -377,15 +379,10 @@ fn shade(
 }
 
 // What lane `lane` of vertex `v` (unit normal `n`) adds: the irradiance (e) and specular radiance of the
-// runs inside its block of partition nodes.
+// runs inside its partition nodes, every LANES-th from the lane's index.
 fn shade_block(vertex: GpuVertex, n: vec3<f32>, v: u32, lane: u32) -> RunShade {
     var result = RunShade(vec3<f32>(0.0), vec3<f32>(0.0));
     let partition_count = u.counts.z;
-    let first_part = lane * partition_count / LANES;
-    let end_part = (lane + 1u) * partition_count / LANES;
-    if first_part >= end_part {
-        return result;
-    }
     let flags = u.table.y;
     var frame: Frame;
     if (flags & FLAG_TANGENTS) != 0u {
@@ -406,36 +403,30 @@ fn shade_block(vertex: GpuVertex, n: vec3<f32>, v: u32, lane: u32) -> RunShade {
     let f0 = u.rho_d_f0.w;
     let leaf_light = 3u * u.counts.w;
 
-    var pos = render_partition[first_part].range.x;
-    let end = render_partition[end_part - 1u].range.y;
-    var si = first_part;
-    // The first cut entry that ends after `pos`, by bisection.
+    // The partition node being walked (si; its leaves [pos, node_end)), whether it lies wholly above
+    // the horizon, and the cut cursor idx: the first cut entry that ends after pos, found by bisection
+    // over [idx, hi) when a node is taken.
+    var si = lane;
+    var taken = false;
+    var part = PartitionEntry(vec4<u32>(0u), vec4<f32>(0.0));
+    var above = false;
+    var pos = 0u;
+    var node_end = 0u;
     var idx = cut_offsets[v];
-    var hi = cut_offsets[v + 1u];
-    let idx_end = hi;
-    loop {
-        if idx >= hi {
-            break;
-        }
-        let mid = (idx + hi) / 2u;
-        if cut_entries[mid].y <= pos {
-            idx = mid + 1u;
-        } else {
-            hi = mid;
-        }
-    }
+    var hi = idx;
+    let idx_end = cut_offsets[v + 1u];
     // A run astride the horizon, summed one leaf per iteration: leaves [leaf, run_end) still to go.
     var leaf = 0u;
     var run_end = 0u;
     var run_node = 0u;
     var run_vis = 0.0;
     var run_cos = vec3<f32>(0.0);
-    // One flat loop whose every iteration either takes the next run or sums one leaf of the run astride
-    // the horizon: lavapipe (llvmpipe) ends a shader's loops after 65,535 iterations in all
-    // (LP_MAX_TGSI_LOOP_ITERATIONS, shared by every loop and counted per SIMD group of 8 invocations),
-    // so nested loops, whose iterations add up over the group's union of horizon nodes, lost runs at 8°
-    // partitions (the white furnace 0.55 off). Here a group takes as many iterations as its busiest
-    // invocation: its runs plus the leaves of its nodes astride the horizon.
+    // One flat loop whose every iteration sums one leaf of a run astride the horizon, or takes one
+    // bisection step, or takes the lane's next partition node, or takes the next run: lavapipe
+    // (llvmpipe) ends a shader's loops after 65,535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS,
+    // shared by every loop and counted per SIMD group of 8 invocations), so nested loops, whose
+    // iterations add up over the group's union of horizon nodes, lost runs at 8° partitions (the white
+    // furnace 0.55 off). Here a group takes as many iterations as its busiest invocation.
     loop {
         if leaf < run_end {
             let ci = leaf_cosine_integral(leaf, n);
@@ -450,20 +441,45 @@ fn shade_block(vertex: GpuVertex, n: vec3<f32>, v: u32, lane: u32) -> RunShade {
             }
             continue;
         }
-        if pos >= end {
-            break;
+        if idx < hi {
+            let mid = (idx + hi) / 2u;
+            if cut_entries[mid].y <= pos {
+                idx = mid + 1u;
+            } else {
+                hi = mid;
+            }
+            continue;
         }
-        // Runs end at partition and cut boundaries, so each step passes at most one of each.
-        if si < end_part && render_partition[si].range.y <= pos {
-            si++;
+        if pos >= node_end {
+            if taken {
+                si += LANES;
+            }
+            taken = true;
+            if si >= partition_count {
+                break;
+            }
+            part = render_partition[si];
+            // A partition node wholly below the horizon contributes nothing; one wholly above is
+            // its runs' light moments · n; one astride it is summed leaf by leaf (the exact clip
+            // where cut).
+            let axis = part.cone.xyz;
+            let ccos = part.cone.w;
+            let csin = sqrt(max(1.0 - ccos * ccos, 0.0));
+            let cb = dot(axis, n);
+            let sb = sqrt(max(1.0 - cb * cb, 0.0));
+            if cb < 0.0 && cb * ccos + sb * csin <= 0.0 {
+                continue;
+            }
+            above = cb * ccos - sb * csin > 0.0 && sb * ccos + cb * csin > 0.0;
+            pos = part.range.x;
+            node_end = part.range.y;
+            hi = idx_end;
+            continue;
         }
-        if si >= end_part {
-            break;
-        }
-        let part = render_partition[si];
-        var next = part.range.y;
+        var next = node_end;
         var vis = 0.0;
         var node = part.range.z;
+        // Runs end at cut boundaries, so each step passes at most one cut entry.
         if idx < idx_end && cut_entries[idx].y <= pos {
             idx++;
         }
@@ -486,17 +502,7 @@ fn shade_block(vertex: GpuVertex, n: vec3<f32>, v: u32, lane: u32) -> RunShade {
         if !(vis > 0.0) {
             continue;
         }
-        // A partition node wholly below the horizon contributes nothing; one wholly above is its
-        // light's moment · n; one astride it is summed leaf by leaf (the exact clip where cut).
-        let axis = part.cone.xyz;
-        let ccos = part.cone.w;
-        let csin = sqrt(max(1.0 - ccos * ccos, 0.0));
-        let cb = dot(axis, n);
-        let sb = sqrt(max(1.0 - cb * cb, 0.0));
-        if cb < 0.0 && cb * ccos + sb * csin <= 0.0 {
-            continue;
-        }
-        if cb * ccos - sb * csin > 0.0 && sb * ccos + cb * csin > 0.0 {
+        if above {
             let m = node_moments(node);
             let cos_power = max(vec3<f32>(dot(m.r.xyz, n), dot(m.g.xyz, n), dot(m.b.xyz, n)), vec3<f32>(0.0));
             let r = shade_run(node, vis, cos_power, n, frame, wo, specular_on, prefilter, f0);
