@@ -338,7 +338,7 @@ var<workgroup> lane_spec: array<vec4<f32>, LANES>;
 // runs and the leaves astride its horizon); spread over the lanes, a frame does not wait for the
 // longest walk done alone. Every LANES-th node rather than a contiguous block per lane, because the
 // nodes astride the horizon lie together in leaf order and a block would give them to a few lanes
-// (docs/benchmarks.md, "The wgpu preview on a GPU").
+// (docs/benchmarks.md, "The wgpu preview").
 @compute @workgroup_size(64)
 fn shade(
     @builtin(workgroup_id) group: vec3<u32>,
