@@ -18,7 +18,8 @@
 //! app's preview settings, the camera orbiting so that every frame shades the vertices anew, at
 //! 640×480 to 3840×2160. Per size: the app's frame (shade, raster, readback into an image, waited
 //! for), the frame without readback (100 frames submitted back to back, then one wait: what the
-//! GPU sustains), and a light rotation (light sums on the CPU, upload, frame).
+//! GPU sustains), and a light rotation (light sums on the CPU, upload, frame); `-- gpu bunny` or
+//! `-- gpu dragon_100k` runs that scene only.
 
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
@@ -403,10 +404,17 @@ fn gpu_frames(table: &PhPyramid) -> Result<(), Box<dyn std::error::Error>> {
         "| scene | vertices | triangles | size | app frame with readback (ms) | fps | frame without readback, 100 back to back (ms) | fps | light rotation: sums + upload + frame (ms) |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
+    // `-- gpu dragon_100k` (or `bunny`): that scene only.
+    let args: Vec<String> = std::env::args().collect();
     for (mesh, env) in [
         ("bunny", "hdr/small/studio_512.exr"),
         ("dragon_100k", "hdr/courtyard_1k.exr"),
     ] {
+        if args.iter().any(|a| a == "bunny" || a == "dragon_100k")
+            && !args.iter().any(|a| a == mesh)
+        {
+            continue;
+        }
         let imported = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
         let env = glint::env::load(&common::assets().join(env))?;
         let baker = Baker::new(&imported, &env, BakeSettings::default())?;
