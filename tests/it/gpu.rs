@@ -225,6 +225,45 @@ fn gpu_preview_matches_the_cpu_frame_on_the_teapot() {
     }
 }
 
+/// The shading pass runs one workgroup per vertex on a 2D grid once the vertices outnumber the
+/// device's workgroups per dimension (65,535 on most): with that limit set to 100, a sphere's 500-odd
+/// vertices take six rows, the last part empty, and every vertex comes out exactly as in one row.
+#[test]
+fn vertices_past_one_row_of_workgroups_shade_as_in_one() {
+    let Some(ctx) = context() else { return };
+    let scene = common::scene_from_mesh(common::uv_sphere(1.0, 32, 16, false));
+    let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let bake = baker.bake_all(None, &|_| {});
+    let vertices = scene.mesh.positions.len();
+    let mut narrow = ctx.clone();
+    narrow.limits.max_compute_workgroups_per_dimension = 100;
+    assert!(vertices > 500 && vertices < 600, "{vertices} vertices");
+    let radiance = |ctx: &GpuContext| {
+        let mut gpu = GpuPreview::new(
+            ctx,
+            &scene.mesh,
+            &bake.cuts,
+            &baker.tree,
+            None,
+            PrtSettings::default(),
+        )
+        .unwrap();
+        gpu.set_light(
+            &LightSums::new(&env, &baker.set, &baker.tree, 0.0),
+            &baker.tree,
+        )
+        .unwrap();
+        gpu.set_material([0.8; 3], 0.04, None).unwrap();
+        gpu.vertex_radiance(scene.cameras[0].eye()).unwrap()
+    };
+    let one_row = radiance(&ctx);
+    let rows = radiance(&narrow);
+    assert_eq!(one_row.len(), vertices);
+    assert!(one_row.iter().flatten().any(|&c| c > 0.0));
+    assert_eq!(rows, one_row);
+}
+
 /// A white furnace on the GPU: ρd = 1 under a uniform environment of radiance 1 with no occluder
 /// renders 1 everywhere (closed form), and a frame before `set_light` is an error, not a panic.
 #[test]
