@@ -38,6 +38,13 @@ use std::time::Instant;
 mod common;
 
 fn main() {
+    if let Err(e) = run() {
+        eprintln!("bake bench: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let sections: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))
@@ -45,10 +52,10 @@ fn main() {
     let named = |s: &String| ["energy", "rays", "matrix", "view", "million"].contains(&s.as_str());
     let wants = |name: &str| !sections.iter().any(named) || sections.iter().any(|s| s == name);
     if wants("energy") {
-        energy();
+        energy()?;
     }
     if wants("rays") {
-        rays();
+        rays()?;
     }
     if wants("matrix") {
         // Mesh and map names among the arguments narrow the matrix to them.
@@ -75,43 +82,68 @@ fn main() {
             if meshes.is_empty() { &MESHES } else { &meshes },
             if maps.is_empty() { &MAPS } else { &maps },
             side_by_side,
-        );
+        )?;
     }
     if wants("view") {
-        view();
+        view()?;
     }
     if wants("million") {
-        million();
+        million()?;
     }
+    Ok(())
 }
 
-/// Median of `n` timed runs of `f` (seconds), and the last result.
+/// Median of `n` (at least 1) timed runs of `f` (seconds), and the last result.
 fn median_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut times = Vec::with_capacity(n);
-    let mut last = None;
-    for _ in 0..n {
+    let mut times = Vec::with_capacity(n.max(1));
+    let mut timed = || {
         let t = Instant::now();
-        last = Some(std::hint::black_box(f()));
+        let out = std::hint::black_box(f());
         times.push(t.elapsed().as_secs_f64());
+        out
+    };
+    let mut last = timed();
+    for _ in 1..n {
+        last = timed();
     }
     times.sort_by(f64::total_cmp);
-    (times[n / 2], last.expect("n ≥ 1"))
+    (times[times.len() / 2], last)
 }
 
-fn energy() {
+/// [`median_of`] for a fallible `f`: the first error ends the runs.
+fn try_median_of<T>(
+    n: usize,
+    mut f: impl FnMut() -> anyhow::Result<T>,
+) -> anyhow::Result<(f64, T)> {
+    let mut times = Vec::with_capacity(n.max(1));
+    let mut timed = || {
+        let t = Instant::now();
+        let out = std::hint::black_box(f());
+        times.push(t.elapsed().as_secs_f64());
+        out
+    };
+    let mut last = timed()?;
+    for _ in 1..n {
+        last = timed()?;
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((times[times.len() / 2], last))
+}
+
+fn energy() -> anyhow::Result<()> {
     use glint::brdf::energy::{
         EnergyQuadrature, EnergyTable, default_outgoing, lobe_set_albedo_parts,
     };
     use glint::math::GaussLegendre;
     use rayon::prelude::*;
-    let lambda = srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap();
+    let lambda = srbf::lambda_from_sigma(srbf::PAPER_SIGMA)?;
     let cache = std::env::temp_dir().join(format!("glint-bench-energy-{}", std::process::id()));
     println!(
         "| lobes | entries | entry by entry (s) | distinct geometries once (s) | from the disk cache (s) | largest difference |"
     );
     println!("|---|---|---|---|---|---|");
     for layout in [LobeLayout::PAPER, LobeLayout::Isotropic { count: 24 }] {
-        let lobes = LobeSet::new(layout, lambda).unwrap();
+        let lobes = LobeSet::new(layout, lambda)?;
         let outgoing = default_outgoing(&lobes);
         let quad = EnergyQuadrature::default();
         let rule = GaussLegendre::new(quad.radial_points);
@@ -129,7 +161,9 @@ fn energy() {
         let _ = std::fs::remove_dir_all(&cache);
         glint::fit::energy_cache::table_in(&lobes, Some(&cache));
         let (disk_secs, disk) = median_of(3, || glint::fit::energy_cache::load(&lobes, &cache));
-        assert_eq!(disk.expect("cached").parts(), table.parts());
+        let disk =
+            disk.ok_or_else(|| anyhow::anyhow!("the energy table is not in the disk cache"))?;
+        assert_eq!(disk.parts(), table.parts());
         let largest = plain
             .iter()
             .flatten()
@@ -147,6 +181,7 @@ fn energy() {
         );
     }
     let _ = std::fs::remove_dir_all(&cache);
+    Ok(())
 }
 
 /// Occlusion rays as the bake casts them: from each of ~1,000 vertices (offset 1e-4 of the
@@ -155,12 +190,12 @@ fn energy() {
 /// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
 /// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8 and in packets
 /// of 16 (the bake's tracer where the build has Embree), side by side.
-fn rays() {
+fn rays() -> anyhow::Result<()> {
     use glam::{Vec3, Vec3A};
     use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};
     use glint::sphere::{DirectionSet, LightTree};
     use rayon::prelude::*;
-    let tree = LightTree::build(&DirectionSet::cube(64).unwrap());
+    let tree = LightTree::build(&DirectionSet::cube(64)?);
     fn cells(tree: &LightTree, k: usize, out: &mut Vec<Vec3A>) {
         let node = tree.nodes()[k];
         if node.count <= 12 || node.is_leaf() {
@@ -177,8 +212,7 @@ fn rays() {
     );
     println!("|---|---|---|---|---|---|---|---|");
     for mesh in ["bunny", "dragon", "dragon_100k"] {
-        let scene =
-            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
         let m = &scene.mesh;
         let offset = 1e-4 * (scene.bounds.max - scene.bounds.min).length();
         let step = (m.positions.len() / 1000).max(1);
@@ -275,6 +309,7 @@ fn rays() {
             );
         }
     }
+    Ok(())
 }
 
 const MESHES: [&str; 5] = ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"];
@@ -296,7 +331,7 @@ enum Baseline {
 }
 
 /// `side_by_side`: each bake also as the baseline, in the same run.
-fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
+fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) -> anyhow::Result<()> {
     let baseline = match side_by_side {
         Some(Baseline::OneRayAtATime) => " bake, one ray at a time (s) |",
         Some(Baseline::Obvhs) => " bake, rays through obvhs (s; rays) |",
@@ -312,20 +347,18 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
         if baseline.is_empty() { "" } else { "---|" }
     );
     for &mesh in meshes {
-        let scene =
-            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
         for map in maps {
-            let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+            let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr")))?;
             // The unbudgeted baseline's settings, decided once outside the timing (so that its
             // bakes make one set of decisions, as the default's do).
             let refines = side_by_side == Some(Baseline::Unbudgeted)
-                && Baker::new(&scene, &env, BakeSettings::default())
-                    .unwrap()
+                && Baker::new(&scene, &env, BakeSettings::default())?
                     .decisions
                     .boundary_levels
                     > 0;
             let bake = |baseline: Option<Baseline>| {
-                median_of(3, || {
+                try_median_of(3, || {
                     let mut settings = BakeSettings::default();
                     settings.refine.interpolate = baseline != Some(Baseline::EveryVertexTraced);
                     if baseline == Some(Baseline::Unbudgeted) && refines {
@@ -338,21 +371,21 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
                     } else {
                         Backend::best()
                     };
-                    let mut baker = Baker::with_backend(&scene, &env, settings, backend).unwrap();
+                    let mut baker = Baker::with_backend(&scene, &env, settings, backend)?;
                     baker
                         .tracer
                         .set_packets(baseline != Some(Baseline::OneRayAtATime));
-                    baker.bake_refined(None, &|_| {}).stats
+                    Ok(baker.bake_refined(None, &|_| {}).stats)
                 })
             };
             let (base_secs, base) = match side_by_side {
                 Some(b) => {
-                    let (t, s) = bake(Some(b));
+                    let (t, s) = bake(Some(b))?;
                     (t, Some(s))
                 }
                 None => (f64::NAN, None),
             };
-            let (secs, stats) = bake(None);
+            let (secs, stats) = bake(None)?;
             // Packets and single rays disagree only for rays within rounding of a triangle's edge
             // (about 1 in 10⁵), which can move a boundary cell: the rays differ as little.
             // So do the two tracers.
@@ -385,6 +418,7 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) {
             );
         }
     }
+    Ok(())
 }
 
 /// Peak resident set size of this process so far (bytes; Linux's `ru_maxrss` is in KiB).
@@ -412,15 +446,15 @@ fn current_rss() -> u64 {
 /// The million-triangle mesh: dragon_100k with every edge split twice (4× the triangles each
 /// time), baked with the defaults under courtyard_1k, once (it is the slowest case), in a process
 /// of its own so that the peak RSS is this bake's (run `-- million` alone).
-fn million() {
-    let mut scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
+fn million() -> anyhow::Result<()> {
+    let mut scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb"))?;
     for _ in 0..2 {
         glint::scene::split_edges(&mut scene.mesh, &|_, _| true);
     }
-    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr")).unwrap();
+    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr"))?;
     let before = peak_rss();
     let t = Instant::now();
-    let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+    let baker = Baker::new(&scene, &env, BakeSettings::default())?;
     let after_decisions = peak_rss();
     let live_after_decisions = current_rss();
     let bake = baker.bake_refined(None, &|_| {});
@@ -446,7 +480,7 @@ fn million() {
         mib(s.bytes as u64),
         s.bytes_per_vertex,
     );
-    million_error(&scene, &env, &baker, &bake);
+    million_error(&scene, &env, &baker, &bake)
 }
 
 /// The visibility error of the million-triangle bake at 400 vertices spread over the mesh, as
@@ -458,10 +492,10 @@ fn million_error(
     env: &glint::env::EnvMap,
     baker: &Baker,
     bake: &glint::bake::Bake,
-) {
+) -> anyhow::Result<()> {
     let mut every = BakeSettings::default();
     every.refine.interpolate = false;
-    let tracing = Baker::new(scene, env, every).unwrap();
+    let tracing = Baker::new(scene, env, every)?;
     let luminance = common::leaf_luminance(env, baker);
     let n = scene.mesh.positions.len();
     let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
@@ -479,16 +513,16 @@ fn million_error(
         100.0 * baked / total,
         100.0 * traced / total
     );
+    Ok(())
 }
 
-fn view() {
-    let scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb")).unwrap();
-    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr")).unwrap();
+fn view() -> anyhow::Result<()> {
+    let scene = glint::scene::import(&common::assets().join("glb/dragon_100k.glb"))?;
+    let env = glint::env::load(&common::assets().join("hdr/courtyard_1k.exr"))?;
     let lobes = LobeSet::new(
         LobeLayout::Isotropic { count: 24 },
-        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
-    )
-    .unwrap();
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA)?,
+    )?;
     let camera = glint::scene::default_camera(&scene.bounds);
     println!(
         "| run | bake (s) | deciding (s) | vertices | rays | rays/s | bytes/vertex | rotation | light sums (s) | light sums, kept source (s) | transfer 160×120 (s), median of 5 (min–max) | pixels |"
@@ -496,11 +530,11 @@ fn view() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for run in 1..=2 {
         let t = Instant::now();
-        let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+        let baker = Baker::new(&scene, &env, BakeSettings::default())?;
         let bake = baker.bake_refined(None, &|_| {});
         let bake_secs = t.elapsed().as_secs_f64();
         let s = &bake.stats;
-        let mesh = bake.mesh(&scene.mesh).unwrap();
+        let mesh = bake.mesh(&scene.mesh)?;
         let ctx = glint::transfer::TransferContext::new(
             &mesh,
             &bake.cuts,
@@ -549,4 +583,5 @@ fn view() {
             );
         }
     }
+    Ok(())
 }

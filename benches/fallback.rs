@@ -33,27 +33,32 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Median seconds of 3 runs and the last result.
 fn time<T>(mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut out = None;
-    let times = (0..3)
-        .map(|_| {
-            let t = Instant::now();
-            out = Some(f());
-            t.elapsed().as_secs_f64()
-        })
-        .collect();
-    (median(times), out.expect("three runs"))
+    let mut times = Vec::with_capacity(3);
+    let mut timed = || {
+        let t = Instant::now();
+        let out = f();
+        times.push(t.elapsed().as_secs_f64());
+        out
+    };
+    for _ in 0..2 {
+        std::hint::black_box(timed());
+    }
+    let out = timed();
+    (median(times), out)
 }
 
 /// The material's lobes and its p(h) table at the export's default resolution.
-fn table_of(material: &glint::fit::material::Material) -> (glint::sphere::LobeSet, PhPyramid) {
-    let lobes = material.lobes().expect("a valid layout");
+fn table_of(
+    material: &glint::fit::material::Material,
+) -> anyhow::Result<(glint::sphere::LobeSet, PhPyramid)> {
+    let lobes = material.lobes()?;
     let coefficients = [
         material.coefficients[0].as_slice(),
         material.coefficients[1].as_slice(),
         material.coefficients[2].as_slice(),
     ];
     let table = PhPyramid::build_unfiltered(&lobes, coefficients, 512);
-    (lobes, table)
+    Ok((lobes, table))
 }
 
 /// The case's mesh as the export describes it, seen from `camera` under the case's map.
@@ -70,6 +75,13 @@ fn scene_for(
 }
 
 fn main() {
+    if let Err(e) = run() {
+        eprintln!("fallback bench: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let c = render_cases::case_at(
         &samples.join("bunny.glb"),
@@ -77,9 +89,7 @@ fn main() {
         true,
     );
     let (w, h) = (640, 480);
-    let default_camera = glint::scene::view::render_view(&c.scene, None, None, Some("640x480"))
-        .expect("the default view")
-        .0;
+    let default_camera = glint::scene::view::render_view(&c.scene, None, None, Some("640x480"))?.0;
     let orbit = glint::scene::orbit_camera(&c.scene.bounds, 20.0, 15.0, 2.5, w, h);
     if std::env::args().any(|a| a == "floor") {
         let key_light =
@@ -94,7 +104,7 @@ fn main() {
         );
         println!("|---|---|---|---|---|---|---|");
         for (name, material, camera) in materials {
-            let (lobes, table) = table_of(&material);
+            let (lobes, table) = table_of(&material)?;
             let one = material_fallback(&material, &lobes, &table);
             let mesh = scene_for(&c, &camera, w, h);
             let objective = Objective::new(&table, material.rho_d, material.f0, Some(&mesh));
@@ -114,14 +124,14 @@ fn main() {
                 floor.params,
             );
         }
-        return;
+        return Ok(());
     }
     let materials = [
         ("demo", render_cases::fitted(&c), default_camera),
         ("sharp lobe", render_cases::one_sharp_lobe(), orbit),
     ];
     for (name, material, camera) in materials {
-        let (lobes, table) = table_of(&material);
+        let (lobes, table) = table_of(&material)?;
         let (t_one, one) = time(|| material_fallback(&material, &lobes, &table));
         let mesh = scene_for(&c, &camera, w, h);
         for scene in [None, Some(&mesh)] {
@@ -143,4 +153,5 @@ fn main() {
             println!("  {}", usd.summary());
         }
     }
+    Ok(())
 }

@@ -36,12 +36,23 @@ fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
     )
 }
 
+/// [`time`] for a fallible `f`: the first error ends the runs.
+fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
+    let mut times = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        let t = Instant::now();
+        std::hint::black_box(f()?);
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok(median(times))
+}
+
 fn transfer_for(
     scene: &Scene,
     env: &glint::env::EnvMap,
     layout: LobeLayout,
     size: (u32, u32),
-) -> (Transfer, LobeSet) {
+) -> anyhow::Result<(Transfer, LobeSet)> {
     let baker = Baker::new(
         scene,
         env,
@@ -49,10 +60,9 @@ fn transfer_for(
             resolution: Some(32),
             ..BakeSettings::default()
         },
-    )
-    .unwrap();
+    )?;
     let bake = baker.bake_all(None, &|_| {});
-    let lobes = LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap()).unwrap();
+    let lobes = LobeSet::new(layout, srbf::lambda_from_sigma(srbf::PAPER_SIGMA)?)?;
     let light = LightSums::new(env, &baker.set, &baker.tree, 0.0);
     let mut camera = scene.cameras[0].clone();
     camera.width = size.0 * 4;
@@ -65,12 +75,12 @@ fn transfer_for(
         baker.tangents.as_deref(),
         None,
     );
-    (ctx.compute(&light, &camera, size.0, size.1, 0.04), lobes)
+    Ok((ctx.compute(&light, &camera, size.0, size.1, 0.04), lobes))
 }
 
-fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
+fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) -> anyhow::Result<()> {
     if !selected(label) {
-        return;
+        return Ok(());
     }
     let energy = glint::brdf::EnergyTable::with_defaults(lobes);
     let n = transfer.pixels.len();
@@ -99,9 +109,7 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
             .map(|c| normal_equations(&data, c, 0.5))
             .collect::<Vec<_>>()
     });
-    let cold = time(5, || {
-        solve_rgb(&data, Some((&energy, 0.04)), [0.5; 3]).unwrap()
-    });
+    let cold = try_time(5, || solve_rgb(&data, Some((&energy, 0.04)), [0.5; 3]))?;
     // Warm and hot re-solves after a small stroke (q changes by a few % on 10 % of the lobes).
     let eq = normal_equations(&data, 0, 0.5);
     let solver = QpSolver::new(
@@ -110,13 +118,12 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
         &energy.matrix(0.04),
         &vec![0.5; energy.rows()],
         energy.rows(),
-    )
-    .unwrap();
+    )?;
     let q: Vec<f64> = eq.r.iter().map(|x| -x).collect();
-    let first = solver.solve(&q, None).unwrap();
-    let plain = solver.solve_unseeded(&q).unwrap();
-    let cold_seeded = time(5, || solver.solve(&q, None).unwrap());
-    let cold_plain = time(5, || solver.solve_unseeded(&q).unwrap());
+    let first = solver.solve(&q, None)?;
+    let plain = solver.solve_unseeded(&q)?;
+    let cold_seeded = try_time(5, || solver.solve(&q, None))?;
+    let cold_plain = try_time(5, || solver.solve_unseeded(&q))?;
     let rows = first
         .active
         .iter()
@@ -127,13 +134,13 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
         .enumerate()
         .map(|(i, x)| if i % 10 == 0 { x * 1.03 } else { *x })
         .collect();
-    let warm = time(20, || solver.solve(&q2, Some(&first.active)).unwrap());
+    let warm = try_time(20, || solver.solve(&q2, Some(&first.active)))?;
     let mut hot = HotStart::default();
-    let _ = solver.solve_hot(&q, &mut hot).unwrap();
-    let hot_ms = time(20, || {
+    solver.solve_hot(&q, &mut hot)?;
+    let hot_ms = try_time(20, || {
         let mut h = hot.clone();
-        solver.solve_hot(&q2, &mut h).unwrap()
-    });
+        solver.solve_hot(&q2, &mut h)
+    })?;
     println!(
         "{label}: N = {n} pixels, J = {}, {} energy rows | form H (RGB) {form:.2} ms | cold fit incl. H (RGB) {cold:.2} ms | warm re-solve {warm:.3} ms/channel | hot re-solve {hot_ms:.3} ms/channel",
         lobes.len(),
@@ -145,6 +152,7 @@ fn bench(label: &str, transfer: &Transfer, lobes: &LobeSet) {
         plain.iterations,
         first.active.len()
     );
+    Ok(())
 }
 
 /// `GLINT_BENCH_ONLY=640x480 cargo bench --bench fit` runs only the rows whose label contains it.
@@ -153,15 +161,22 @@ fn selected(label: &str) -> bool {
 }
 
 fn main() {
+    if let Err(e) = run() {
+        eprintln!("fit bench: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets");
-    let env = glint::env::load(&assets.join("hdr/small/courtyard_512.exr")).unwrap();
-    let bunny = glint::scene::import(&assets.join("glb/bunny.glb")).unwrap();
+    let env = glint::env::load(&assets.join("hdr/small/courtyard_512.exr"))?;
+    let bunny = glint::scene::import(&assets.join("glb/bunny.glb"))?;
     let iso = LobeLayout::Isotropic { count: 24 };
     for size in [(160, 120), (640, 480)] {
         let label = format!("bunny {}x{}, isotropic", size.0, size.1);
         if selected(&label) {
-            let (t, l) = transfer_for(&bunny, &env, iso, size);
-            bench(&label, &t, &l);
+            let (t, l) = transfer_for(&bunny, &env, iso, size)?;
+            bench(&label, &t, &l)?;
         }
     }
     // A tangent-carrying sphere (1.6 K pixels at 160x120 with the default camera ~ the paper's N).
@@ -170,11 +185,12 @@ fn main() {
         for size in [(160, 120), (200, 150), (640, 480)] {
             let label = format!("sphere {}x{}, {}", size.0, size.1, layout.name());
             if selected(&label) {
-                let (t, l) = transfer_for(&sphere, &env, layout, size);
-                bench(&label, &t, &l);
+                let (t, l) = transfer_for(&sphere, &env, layout, size)?;
+                bench(&label, &t, &l)?;
             }
         }
     }
+    Ok(())
 }
 
 fn sphere_scene() -> Scene {

@@ -48,12 +48,30 @@ fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
     )
 }
 
+/// [`time`] for a fallible `f`: the first error ends the runs.
+#[cfg(feature = "gui")]
+fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
+    let mut times = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        let t = Instant::now();
+        std::hint::black_box(f()?);
+        times.push(t.elapsed().as_secs_f64());
+    }
+    Ok(median(times))
+}
+
 fn main() {
+    if let Err(e) = run() {
+        eprintln!("render bench: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     let lobes = LobeSet::new(
         LobeLayout::Isotropic { count: 24 },
-        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
-    )
-    .unwrap();
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA)?,
+    )?;
     let mut c = vec![0.0; lobes.len()];
     (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
     let coefficients = [c.as_slice(), c.as_slice(), c.as_slice()];
@@ -87,17 +105,12 @@ fn main() {
                 }
             },
         };
-        still_frames(&shading, spp);
-        return;
+        return still_frames(&shading, spp);
     }
     // `cargo bench --bench render -- gpu`: the wgpu preview's frame rate table only.
     #[cfg(feature = "gui")]
     if std::env::args().any(|a| a == "gpu") {
-        if let Err(e) = gpu_frames(&table) {
-            eprintln!("render bench: {e}");
-            std::process::exit(1);
-        }
-        return;
+        return gpu_frames(&table);
     }
     let mut gpu_rows = Vec::new();
     println!("| scene | vertices | size | shading | subdivision | points | frame (s) | fps |");
@@ -106,12 +119,11 @@ fn main() {
         ("bunny", "hdr/small/studio_512.exr"),
         ("dragon_100k", "hdr/courtyard_1k.exr"),
     ] {
-        let scene =
-            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-        let env = glint::env::load(&common::assets().join(env)).unwrap();
-        let baker = Baker::new(&scene, &env, BakeSettings::default()).unwrap();
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+        let env = glint::env::load(&common::assets().join(env))?;
+        let baker = Baker::new(&scene, &env, BakeSettings::default())?;
         let bake = baker.bake_refined(None, &|_| {});
-        let scene = bake.scene(&scene).unwrap();
+        let scene = bake.scene(&scene)?;
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let default_deg = PrtSettings::default().partition_deg;
         // The last rows are the default with its grazing points' runs resolved inside their
@@ -249,15 +261,14 @@ fn main() {
                     &baker.tree,
                     None,
                     settings,
-                )
-                .unwrap();
-                preview.set_material([0.5; 3], 0.04, Some(&table)).unwrap();
-                let t_light = time(3, || preview.set_light(&light, &baker.tree).unwrap());
+                )?;
+                preview.set_material([0.5; 3], 0.04, Some(&table))?;
+                let t_light = try_time(3, || preview.set_light(&light, &baker.tree))?;
                 for (w, h) in [(160, 120), (640, 480)] {
                     let mut camera = scene.cameras[0].clone();
                     camera.aspect = w as f32 / h as f32;
-                    preview.render(&camera, w, h).unwrap();
-                    let secs = time(5, || preview.render(&camera, w, h).unwrap());
+                    preview.render(&camera, w, h)?;
+                    let secs = try_time(5, || preview.render(&camera, w, h))?;
                     gpu_rows.push(format!(
                         "| {mesh} | {} | {w}×{h} | {} | {secs:.3} | {:.1} | {:.1} |",
                         scene.mesh.positions.len(),
@@ -281,20 +292,20 @@ fn main() {
         println!("{row}");
     }
     #[cfg(feature = "gui")]
-    still_frames(&shading, 1024);
+    still_frames(&shading, 1024)?;
+    Ok(())
 }
 
 /// The app's still frame against its preview frame (see the module docs), the reference at 2 ×
 /// `spp` samples a pixel.
 #[cfg(feature = "gui")]
-fn still_frames(shading: &Shading, spp: u32) {
+fn still_frames(shading: &Shading, spp: u32) -> anyhow::Result<()> {
     use glint::app::engine::preview_settings;
     use glint::render::{ExactMaterial, render_reference};
     let lobes = LobeSet::new(
         LobeLayout::Isotropic { count: 24 },
-        srbf::lambda_from_sigma(srbf::PAPER_SIGMA).unwrap(),
-    )
-    .unwrap();
+        srbf::lambda_from_sigma(srbf::PAPER_SIGMA)?,
+    )?;
     let mut c = vec![0.0; lobes.len()];
     (c[0], c[3], c[9]) = (0.8, 0.5, 0.3);
     let exact = ExactMaterial {
@@ -312,12 +323,11 @@ fn still_frames(shading: &Shading, spp: u32) {
         ("bunny", "hdr/small/studio_512.exr"),
         ("dragon_100k", "hdr/courtyard_1k.exr"),
     ] {
-        let imported =
-            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-        let env = glint::env::load(&common::assets().join(env)).unwrap();
-        let baker = Baker::new(&imported, &env, BakeSettings::default()).unwrap();
+        let imported = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+        let env = glint::env::load(&common::assets().join(env))?;
+        let baker = Baker::new(&imported, &env, BakeSettings::default())?;
         let bake = baker.bake_refined(None, &|_| {});
-        let scene = bake.scene(&imported).unwrap();
+        let scene = bake.scene(&imported)?;
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
         let light = LightSums::new(&env, &baker.set, &baker.tree, 0.0);
         let frame = |settings: PrtSettings, w: u32, h: u32| {
@@ -384,11 +394,12 @@ fn still_frames(shading: &Shading, spp: u32) {
             100.0 * less(err(&still)),
         );
     }
+    Ok(())
 }
 
 /// The wgpu preview's frame rate as the app drives it (see the module docs, `-- gpu`).
 #[cfg(feature = "gui")]
-fn gpu_frames(table: &PhPyramid) -> Result<(), Box<dyn std::error::Error>> {
+fn gpu_frames(table: &PhPyramid) -> anyhow::Result<()> {
     use glint::app::engine::preview_settings;
     use glint::light::LightSource;
     use glint::scene::orbit_camera;
