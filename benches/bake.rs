@@ -39,7 +39,7 @@ mod common;
 
 fn main() {
     if let Err(e) = run() {
-        eprintln!("bake bench: {e:#}");
+        eprintln!("bake bench: {e}");
         std::process::exit(1);
     }
 }

@@ -76,7 +76,7 @@ fn scene_for(
 
 fn main() {
     if let Err(e) = run() {
-        eprintln!("fallback bench: {e:#}");
+        eprintln!("fallback bench: {e}");
         std::process::exit(1);
     }
 }

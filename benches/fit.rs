@@ -162,7 +162,7 @@ fn selected(label: &str) -> bool {
 
 fn main() {
     if let Err(e) = run() {
-        eprintln!("fit bench: {e:#}");
+        eprintln!("fit bench: {e}");
         std::process::exit(1);
     }
 }

@@ -62,7 +62,7 @@ fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f6
 
 fn main() {
     if let Err(e) = run() {
-        eprintln!("render bench: {e:#}");
+        eprintln!("render bench: {e}");
         std::process::exit(1);
     }
 }

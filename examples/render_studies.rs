@@ -13,31 +13,187 @@ mod common;
 #[path = "../tests/it/render_cases.rs"]
 mod render_cases;
 
+use anyhow::{Context, anyhow, bail};
 use glint::bake::{BakeSettings, Baker};
 use glint::light::LightSums;
 use glint::render::prt::{Prt, PrtSettings, Shading, Specular};
 use glint::render::reference::{ExactMaterial, render_reference};
 use glint::render::table::{PhPyramid, default_resolution};
 use render_cases::*;
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
 
-/// A study's setting: `KEY=VALUE` on the command line (in place of an environment variable).
-fn arg(key: &str) -> Result<String, std::env::VarError> {
+/// A study's setting: `KEY=VALUE` on the command line (in place of an environment variable);
+/// `None` when absent, an error when its value is not UTF-8.
+fn arg(key: &str) -> anyhow::Result<Option<String>> {
     let prefix = format!("{key}=");
-    std::env::args()
-        .skip(2)
-        .find_map(|a| a.strip_prefix(&prefix).map(str::to_owned))
-        .ok_or(std::env::VarError::NotPresent)
+    for a in std::env::args_os().skip(2) {
+        match a.into_string() {
+            Ok(a) => {
+                if let Some(value) = a.strip_prefix(&prefix) {
+                    return Ok(Some(value.to_owned()));
+                }
+            }
+            Err(a) => {
+                if a.as_encoded_bytes().starts_with(prefix.as_bytes()) {
+                    bail!("setting {}: not valid UTF-8", a.to_string_lossy());
+                }
+            }
+        }
+    }
+    Ok(None)
+}
+
+/// Whether the setting `key` is given (whatever its value).
+fn flag(key: &str) -> anyhow::Result<bool> {
+    Ok(arg(key)?.is_some())
+}
+
+/// `value`, the value of setting `key`, parsed as a `T`.
+fn parse_setting<T: FromStr>(key: &str, value: &str) -> anyhow::Result<T>
+where
+    T::Err: Display,
+{
+    value
+        .parse()
+        .map_err(|e| anyhow!("setting {key}={value}: {e}"))
+}
+
+/// Setting `key` parsed as a `T`, else `default` parsed.
+fn setting<T: FromStr>(key: &str, default: &str) -> anyhow::Result<T>
+where
+    T::Err: Display,
+{
+    parse_setting(key, arg(key)?.as_deref().unwrap_or(default))
+}
+
+/// Setting `key` parsed as a `T`, `None` when absent.
+fn optional_setting<T: FromStr>(key: &str) -> anyhow::Result<Option<T>>
+where
+    T::Err: Display,
+{
+    arg(key)?
+        .map(|value| parse_setting(key, &value))
+        .transpose()
+}
+
+/// `value`, the value of setting `key`, as a comma-separated list of `T`.
+fn parse_list<T: FromStr>(key: &str, value: &str) -> anyhow::Result<Vec<T>>
+where
+    T::Err: Display,
+{
+    value
+        .split(',')
+        .map(|x| {
+            x.parse()
+                .map_err(|e| anyhow!("setting {key}={value}: item {x:?}: {e}"))
+        })
+        .collect()
+}
+
+/// Setting `key` (else `default`) as a comma-separated list of `T`.
+fn list_setting<T: FromStr>(key: &str, default: &str) -> anyhow::Result<Vec<T>>
+where
+    T::Err: Display,
+{
+    parse_list(key, arg(key)?.as_deref().unwrap_or(default))
+}
+
+/// The `:`-separated fields of `item`, an entry of setting `key` written as `form`: at least
+/// `required` and at most `N` of them, the missing optional ones empty.
+fn fields<'a, const N: usize>(
+    key: &str,
+    item: &'a str,
+    form: &str,
+    required: usize,
+) -> anyhow::Result<[&'a str; N]> {
+    let parts: Vec<&str> = item.split(':').collect();
+    if parts.len() < required || parts.len() > N {
+        let expected = if required == N {
+            format!("{N}")
+        } else {
+            format!("{required} to {N}")
+        };
+        bail!(
+            "setting {key}: item {item:?} has {} fields, expected {expected} ({form})",
+            parts.len()
+        );
+    }
+    let mut out = [""; N];
+    out[..parts.len()].copy_from_slice(&parts);
+    Ok(out)
+}
+
+/// `value`, the field `name` of `item` (an entry of setting `key`), parsed as a `T`.
+fn field<T: FromStr>(key: &str, item: &str, name: &str, value: &str) -> anyhow::Result<T>
+where
+    T::Err: Display,
+{
+    value
+        .parse()
+        .map_err(|e| anyhow!("setting {key}: item {item:?}: {name} {value:?}: {e}"))
+}
+
+/// A glint error as its message alone: glint's messages are one line that already ends with the
+/// cause, which `{:#}` would print a second time from the error's source chain.
+fn flat(e: impl Display) -> anyhow::Error {
+    anyhow!("{e}")
 }
 
 /// Where studies write images: `OUT`, else glint-studies in the system temp folder.
-fn out_dir() -> std::path::PathBuf {
-    arg("OUT")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|_| std::env::temp_dir().join("glint-studies"))
+fn out_dir() -> anyhow::Result<PathBuf> {
+    Ok(arg("OUT")?
+        .map(PathBuf::from)
+        .unwrap_or_else(|| std::env::temp_dir().join("glint-studies")))
 }
 
+/// `path`, which must be an existing file: the shared render cases panic on a missing one.
+fn existing(path: &Path) -> anyhow::Result<&Path> {
+    if !path.is_file() {
+        bail!("{}: no such file", path.display());
+    }
+    Ok(path)
+}
+
+/// [`case`] with its inputs checked first.
+fn checked_case(mesh: &str, env: &str) -> anyhow::Result<Case> {
+    existing(&common::assets().join(format!("glb/{mesh}.glb")))?;
+    existing(&common::assets().join(format!("hdr/small/{env}.exr")))?;
+    Ok(case(mesh, env))
+}
+
+/// [`case_at`] with its inputs checked first.
+fn checked_case_at(mesh: &Path, env: &Path, refined: bool) -> anyhow::Result<Case> {
+    Ok(case_at(existing(mesh)?, existing(env)?, refined))
+}
+
+/// The scene's first camera (an imported scene always has one).
+fn first_camera(scene: &glint::scene::Scene) -> anyhow::Result<&glint::scene::Camera> {
+    scene.cameras.first().context("the scene has no camera")
+}
+
+/// [`glint::render::Image::relative_rmse`] of `a` against `b`, named `what` in the error.
+fn relative_rmse(
+    a: &glint::render::Image,
+    b: &glint::render::Image,
+    what: &str,
+) -> anyhow::Result<f64> {
+    a.relative_rmse(b).with_context(|| {
+        format!("relative RMSE of {what}: no covered pixel in common, or a black reference")
+    })
+}
+
+/// Writes `img` to `path` at exposure 1.
+fn write(img: &glint::render::Image, path: &Path) -> anyhow::Result<()> {
+    img.write(path, 1.0).map_err(flat)
+}
+
+/// A study: runs with its settings from the command line.
+type Study = fn() -> anyhow::Result<()>;
+
 fn main() {
-    let studies: &[(&str, fn())] = &[
+    let studies: &[(&str, Study)] = &[
         ("diagnose", diagnose),
         ("subdivision_study", subdivision_study),
         ("profile_frame", profile_frame),
@@ -46,9 +202,17 @@ fn main() {
         ("sharp_lobe_quadrature", sharp_lobe_quadrature),
         ("bake_error", bake_error),
     ];
-    let name = std::env::args().nth(1).unwrap_or_default();
+    let name = std::env::args_os()
+        .nth(1)
+        .and_then(|n| n.into_string().ok())
+        .unwrap_or_default();
     match studies.iter().find(|(n, _)| *n == name) {
-        Some((_, run)) => run(),
+        Some((_, run)) => {
+            if let Err(e) = run() {
+                eprintln!("render_studies {name}: {e:#}");
+                std::process::exit(1);
+            }
+        }
         None => {
             let names: Vec<_> = studies.iter().map(|(n, _)| *n).collect();
             eprintln!(
@@ -64,13 +228,17 @@ fn main() {
 /// prints PRT, transfer and Monte Carlo errors for a grid of PRT settings (ES: shading-triangle
 /// edges in pixels; a negative value shades per pixel) and writes images to `OUT` (default: the
 /// system temp folder's glint-studies).
-fn diagnose() {
-    let mesh = arg("MESH").unwrap_or("bunny".into());
+fn diagnose() -> anyhow::Result<()> {
+    let mesh: String = setting("MESH", "bunny")?;
+    let pds: Vec<f64> = list_setting("PDS", "1,2,4")?;
+    let es: Vec<f64> = list_setting("ES", "0,1,2,4")?;
+    let out = &out_dir()?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let (w, h) = (160, 120);
-    let c = case(&mesh, "studio_512");
+    let c = checked_case(&mesh, "studio_512")?;
     let m = fitted(&c);
     println!("coefficients R: {:?}", m.coefficients[0]);
-    let lobes = m.lobes().unwrap();
+    let lobes = m.lobes().map_err(flat)?;
     let coefficients = [
         m.coefficients[0].as_slice(),
         m.coefficients[1].as_slice(),
@@ -78,11 +246,9 @@ fn diagnose() {
     ];
     let zero = vec![0.0; lobes.len()];
     let zc = [zero.as_slice(), zero.as_slice(), zero.as_slice()];
-    let camera = &c.scene.cameras[0];
+    let camera = first_camera(&c.scene)?;
     let light = LightSums::new(&c.env, &c.set, &c.tree, 0.0);
     let tracer = glint::bake::Tracer::new(&c.scene.mesh);
-    let out = &out_dir();
-    std::fs::create_dir_all(out).unwrap();
     for (name, coef) in [("diffuse", zc), ("full", coefficients)] {
         let material = ExactMaterial {
             lobes: &lobes,
@@ -134,12 +300,6 @@ fn diagnose() {
             timg.set(p.x, p.y, v.map(|x| x as f32));
         }
         let mut variants = vec![("default".to_string(), PrtSettings::default())];
-        let pds: Vec<f64> = arg("PDS")
-            .map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
-            .unwrap_or(vec![1.0, 2.0, 4.0]);
-        let es: Vec<f64> = arg("ES")
-            .map(|v| v.split(',').map(|x| x.parse().unwrap()).collect())
-            .unwrap_or(vec![0.0, 1.0, 2.0, 4.0]);
         for &pd in &pds {
             for &e in &es {
                 variants.push((
@@ -178,17 +338,16 @@ fn diagnose() {
             let secs = t0.elapsed().as_secs_f64();
             println!(
                 "{name} {label}: PRT vs MC {:.4}, PRT vs transfer {:.4}, frame {secs:.3} s, partition nodes {}",
-                img.relative_rmse(&mc).unwrap(),
-                img.relative_rmse(&timg).unwrap(),
+                relative_rmse(&img, &mc, "PRT vs MC")?,
+                relative_rmse(&img, &timg, "PRT vs transfer")?,
                 prt.partition_nodes()
             );
-            img.write(&out.join(format!("{mesh}_{name}_{label}.exr")), 1.0)
-                .unwrap();
+            write(&img, &out.join(format!("{mesh}_{name}_{label}.exr")))?;
         }
         println!(
             "{name}: transfer vs MC {:.4}, MC noise {:.4}",
-            timg.relative_rmse(&mc).unwrap(),
-            mc2.relative_rmse(&mc).unwrap()
+            relative_rmse(&timg, &mc, "transfer vs MC")?,
+            relative_rmse(&mc2, &mc, "MC noise")?
         );
         let mut diff = glint::render::Image::new(w, h);
         let mut signed = 0.0f64;
@@ -211,48 +370,51 @@ fn diagnose() {
             signed / mc.covered_count() as f64,
             mc.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / mc.covered_count() as f64
         );
-        diff.write(&out.join(format!("{mesh}_{name}_diff.png")), 1.0)
-            .unwrap();
-        mc.write(&out.join(format!("{mesh}_{name}_mc.exr")), 1.0)
-            .unwrap();
-        mc2.write(&out.join(format!("{mesh}_{name}_mc2.exr")), 1.0)
-            .unwrap();
-        timg.write(&out.join(format!("{mesh}_{name}_transfer.exr")), 1.0)
-            .unwrap();
-        mc.write(&out.join(format!("{mesh}_{name}_mc.png")), 1.0)
-            .unwrap();
-        timg.write(&out.join(format!("{mesh}_{name}_transfer.png")), 1.0)
-            .unwrap();
+        write(&diff, &out.join(format!("{mesh}_{name}_diff.png")))?;
+        write(&mc, &out.join(format!("{mesh}_{name}_mc.exr")))?;
+        write(&mc2, &out.join(format!("{mesh}_{name}_mc2.exr")))?;
+        write(&timg, &out.join(format!("{mesh}_{name}_transfer.exr")))?;
+        write(&mc, &out.join(format!("{mesh}_{name}_mc.png")))?;
+        write(&timg, &out.join(format!("{mesh}_{name}_transfer.png")))?;
     }
+    Ok(())
 }
 
 /// Study: transfer and PRT vs Monte Carlo as visibility is baked on a midpoint-subdivided
 /// mesh (`cargo run --release --features studies --example render_studies -- subdivision_study`).
-fn subdivision_study() {
-    let spec =
-        arg("GLINT_STUDY").unwrap_or_else(|_| "teapot:0:11.25:0.02,teapot:1:11.25:0.02".into());
-    for item in spec.split(',') {
-        let f: Vec<&str> = item.split(':').collect();
-        let (mesh, levels, cell_deg, epsilon): (&str, usize, f64, f64) = (
-            f[0],
-            f[1].parse().unwrap(),
-            f[2].parse().unwrap(),
-            f[3].parse().unwrap(),
-        );
+fn subdivision_study() -> anyhow::Result<()> {
+    const KEY: &str = "GLINT_STUDY";
+    let spec: String = setting(KEY, "teapot:0:11.25:0.02,teapot:1:11.25:0.02")?;
+    // Every item is read before the first bake, so that a bad one fails at once.
+    let items = spec
+        .split(',')
+        .map(|item| {
+            let [mesh, levels, cell_deg, epsilon] =
+                fields(KEY, item, "mesh:levels:cell_deg:epsilon", 4)?;
+            let (levels, cell_deg, epsilon): (usize, f64, f64) = (
+                field(KEY, item, "levels", levels)?,
+                field(KEY, item, "cell_deg", cell_deg)?,
+                field(KEY, item, "epsilon", epsilon)?,
+            );
+            Ok((mesh, levels, cell_deg, epsilon))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    for (mesh, levels, cell_deg, epsilon) in items {
         {
-            let mut scene =
-                glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
+            let mut scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))
+                .map_err(flat)?;
             for _ in 0..levels {
                 scene.mesh = glint::scene::subdivide_midpoint(&scene.mesh);
             }
-            let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+            let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr"))
+                .map_err(flat)?;
             let t0 = std::time::Instant::now();
             let mut settings = BakeSettings {
                 cell_deg: Some(cell_deg),
                 ..BakeSettings::default()
             };
             settings.cut.epsilon = epsilon;
-            let baker = Baker::new(&scene, &env, settings).unwrap();
+            let baker = Baker::new(&scene, &env, settings).map_err(flat)?;
             let bake = baker.bake_all(None, &|_| {});
             let bake_secs = t0.elapsed().as_secs_f64();
             let (baker_offset, tangents, set, tree) = (
@@ -272,13 +434,13 @@ fn subdivision_study() {
                 bake,
             };
             let m = fitted(&c);
-            let lobes = m.lobes().unwrap();
+            let lobes = m.lobes().map_err(flat)?;
             let coefficients = [
                 m.coefficients[0].as_slice(),
                 m.coefficients[1].as_slice(),
                 m.coefficients[2].as_slice(),
             ];
-            let camera = &c.scene.cameras[0];
+            let camera = first_camera(&c.scene)?;
             let (w, h) = (160, 120);
             let (prt, prt_v, transfer) = prt_and_transfer(&c, &m, w, h);
             let material = ExactMaterial {
@@ -306,35 +468,36 @@ fn subdivision_study() {
                 "{mesh} levels {levels} cell {cell_deg}° ε {epsilon}: {} vertices, mean cut {:.0}, bake {bake_secs:.2} s; vs MC: transfer {:.4}, PRT {:.4}, PRT vertex-only {:.4}",
                 c.scene.mesh.positions.len(),
                 c.bake.cuts.mean_cut_size(),
-                transfer.relative_rmse(&mc).unwrap(),
-                prt.relative_rmse(&mc).unwrap(),
-                prt_v.relative_rmse(&mc).unwrap()
+                relative_rmse(&transfer, &mc, "transfer vs MC")?,
+                relative_rmse(&prt, &mc, "PRT vs MC")?,
+                relative_rmse(&prt_v, &mc, "PRT vertex-only vs MC")?
             );
         }
     }
+    Ok(())
 }
 
 /// Study: renders one frame REPS times for profiling, e.g. `cargo run --release --features studies
 /// --example render_studies -- profile_frame MESH=bunny PD=4 E=1 REPS=5`.
-fn profile_frame() {
-    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
-    let mesh = var("MESH", "bunny");
-    let env = var("ENV", "studio_512");
+fn profile_frame() -> anyhow::Result<()> {
+    let mesh: String = setting("MESH", "bunny")?;
+    let env: String = setting("ENV", "studio_512")?;
     let (pd, e, reps): (f64, f64, usize) = (
-        var("PD", "4").parse().unwrap(),
-        var("E", "1").parse().unwrap(),
-        var("REPS", "5").parse().unwrap(),
+        setting("PD", "4")?,
+        setting("E", "1")?,
+        setting("REPS", "5")?,
     );
-    let (w, h): (u32, u32) = (
-        var("W", "160").parse().unwrap(),
-        var("H", "120").parse().unwrap(),
-    );
-    let c = case(&mesh, &env);
+    let (w, h): (u32, u32) = (setting("W", "160")?, setting("H", "120")?);
+    if w == 0 || h == 0 {
+        bail!("settings W={w}, H={h}: the frame must have at least one pixel");
+    }
+    let transfer_mode = arg("MODE")?.as_deref() == Some("transfer");
+    let c = checked_case(&mesh, &env)?;
     let lobes = glint::sphere::LobeSet::new(
         glint::sphere::LobeLayout::Isotropic { count: 24 },
-        glint::sphere::srbf::lambda_from_sigma(glint::sphere::srbf::PAPER_SIGMA).unwrap(),
+        glint::sphere::srbf::lambda_from_sigma(glint::sphere::srbf::PAPER_SIGMA).map_err(flat)?,
     )
-    .unwrap();
+    .map_err(flat)?;
     let mut co = vec![0.0; lobes.len()];
     (co[0], co[3], co[9]) = (0.8, 0.5, 0.3);
     let coefficients = [co.as_slice(), co.as_slice(), co.as_slice()];
@@ -353,14 +516,14 @@ fn profile_frame() {
             ..PrtSettings::default()
         },
     );
-    let mut camera = c.scene.cameras[0].clone();
+    let mut camera = first_camera(&c.scene)?.clone();
     camera.aspect = w as f32 / h as f32;
     let shading = Shading {
         rho_d: [0.5; 3],
         f0: 0.04,
         specular: Specular::Table(&table),
     };
-    if arg("MODE").as_deref() == Ok("transfer") {
+    if transfer_mode {
         let ctx = glint::transfer::TransferContext::new(
             &c.scene.mesh,
             &c.bake.cuts,
@@ -382,7 +545,7 @@ fn profile_frame() {
             "{mesh} {w}x{h} transfer: {n} pixels, shading partitions {:?}, best {best:.3} s",
             ctx.shading_partitions()
         );
-        return;
+        return Ok(());
     }
     let t0 = std::time::Instant::now();
     let sm = prt.shading_mesh(&camera, w, h);
@@ -398,27 +561,42 @@ fn profile_frame() {
         sm.points.len(),
         sm.subdivision
     );
+    Ok(())
 }
 
 /// Study: PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
 /// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test
 /// render refine_study -- --ignored --nocapture`.
-fn refine_study() {
-    let spec = arg("GLINT_REFINE").unwrap_or_else(|_| "teapot:0.05:128:3".into());
+fn refine_study() -> anyhow::Result<()> {
+    const KEY: &str = "GLINT_REFINE";
+    let spec: String = setting(KEY, "teapot:0.05:128:3")?;
+    // Every item is read before the first bake, so that a bad one fails at once.
+    let items = spec
+        .split(',')
+        .map(|item| {
+            let [mesh, threshold, inv_edge, rounds, cell_deg] =
+                fields(KEY, item, "mesh:threshold:1/min_edge:rounds[:cell_deg]", 4)?;
+            let (threshold, inv_edge, rounds): (f64, f64, u32) = (
+                field(KEY, item, "threshold", threshold)?,
+                field(KEY, item, "1/min_edge", inv_edge)?,
+                field(KEY, item, "rounds", rounds)?,
+            );
+            let cell_deg: Option<f64> = if cell_deg.is_empty() {
+                None
+            } else {
+                Some(field(KEY, item, "cell_deg", cell_deg)?)
+            };
+            Ok((item, mesh, threshold, inv_edge, rounds, cell_deg))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     // One material per mesh, fitted on the mesh as imported, so that the rows differ only in the
     // bake.
-    let mut materials = std::collections::HashMap::new();
-    for item in spec.split(',') {
-        let f: Vec<&str> = item.split(':').collect();
-        let (mesh, threshold, inv_edge, rounds): (&str, f64, f64, u32) = (
-            f[0],
-            f[1].parse().unwrap(),
-            f[2].parse().unwrap(),
-            f[3].parse().unwrap(),
-        );
-        let scene =
-            glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-        let env = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let mut materials = std::collections::HashMap::<String, glint::fit::material::Material>::new();
+    for (item, mesh, threshold, inv_edge, rounds, cell_deg) in items {
+        let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))
+            .map_err(flat)?;
+        let env =
+            glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).map_err(flat)?;
         let mut settings = BakeSettings::default();
         settings.refine = glint::bake::RefineSettings {
             rounds,
@@ -426,12 +604,12 @@ fn refine_study() {
             min_edge: 1.0 / inv_edge,
             ..Default::default()
         };
-        settings.cell_deg = f.get(4).and_then(|x| x.parse().ok());
+        settings.cell_deg = cell_deg;
         let t0 = std::time::Instant::now();
-        let baker = Baker::new(&scene, &env, settings).unwrap();
+        let baker = Baker::new(&scene, &env, settings).map_err(flat)?;
         let bake = baker.bake_refined(None, &|_| {});
         let bake_secs = t0.elapsed().as_secs_f64();
-        let refined = bake.scene(&scene).unwrap();
+        let refined = bake.scene(&scene).map_err(flat)?;
         let (baker_offset, set, tree) = (baker.ray_offset(), baker.set.clone(), baker.tree.clone());
         drop(baker);
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&refined.mesh);
@@ -445,17 +623,19 @@ fn refine_study() {
             tree,
             bake,
         };
-        let m = materials
-            .entry(mesh.to_string())
-            .or_insert_with(|| fitted(&case(mesh, "studio_512")))
-            .clone();
-        let lobes = m.lobes().unwrap();
+        let m = match materials.entry(mesh.to_string()) {
+            std::collections::hash_map::Entry::Occupied(e) => e.get().clone(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                e.insert(fitted(&checked_case(mesh, "studio_512")?)).clone()
+            }
+        };
+        let lobes = m.lobes().map_err(flat)?;
         let coefficients = [
             m.coefficients[0].as_slice(),
             m.coefficients[1].as_slice(),
             m.coefficients[2].as_slice(),
         ];
-        let camera = &c.scene.cameras[0];
+        let camera = first_camera(&c.scene)?;
         let (w, h) = (160, 120);
         let (prt, _, transfer) = prt_and_transfer(&c, &m, w, h);
         let material = ExactMaterial {
@@ -485,47 +665,45 @@ fn refine_study() {
             c.scene.mesh.positions.len(),
             c.bake.cuts.mean_cut_size(),
             c.bake.stats.rays_traced,
-            transfer.relative_rmse(&mc).unwrap(),
-            prt.relative_rmse(&mc).unwrap(),
+            relative_rmse(&transfer, &mc, "transfer vs MC")?,
+            relative_rmse(&prt, &mc, "PRT vs MC")?,
         );
     }
+    Ok(())
 }
 
 /// Study: the grazing sharp-lobe case (bunny under samples/studio_1k, orbit 20,15,2.5, environment
 /// turned 90°, one sharp ring lobe) with one ingredient of the PRT frame switched at a time, and
 /// its worst pixels. `cargo run --release --features studies --example render_studies --
 /// sharp_lobe_diagnose` (MESH=teapot, ORBIT=az,el,dist, ROT=deg, SPP=n).
-fn sharp_lobe_diagnose() {
-    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
-    let mesh = var("MESH", "bunny");
-    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+fn sharp_lobe_diagnose() -> anyhow::Result<()> {
+    let mesh: String = setting("MESH", "bunny")?;
+    let orbit: Vec<f32> = list_setting("ORBIT", "20,15,2.5")?;
+    let rot: f64 = setting("ROT", "90")?;
+    let spp: u32 = setting("SPP", "2048")?;
+    let noise = flag("NOISE")?;
+    let samples = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
     let t0 = std::time::Instant::now();
-    let c = case_at(
+    let c = checked_case_at(
         &samples.join(format!("{mesh}.glb")),
         &samples.join("studio_1k.exr"),
         true,
-    );
+    )?;
     println!(
         "bake {:.1} s, {} vertices",
         t0.elapsed().as_secs_f64(),
         c.scene.mesh.positions.len()
     );
     let imported = glint::scene::import(&samples.join(format!("{mesh}.glb")))
-        .unwrap()
+        .map_err(flat)?
         .mesh;
     let m = one_sharp_lobe();
     let (w, h) = (160, 120);
-    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5")
-        .split(',')
-        .map(|x| x.parse().unwrap())
-        .collect();
-    let camera = if orbit.len() == 3 {
-        glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h)
+    let camera = if let [az, el, dist] = orbit[..] {
+        glint::scene::orbit_camera(&c.scene.bounds, az, el, dist, w, h)
     } else {
-        c.scene.cameras[0].clone()
+        first_camera(&c.scene)?.clone()
     };
-    let rot: f64 = var("ROT", "90").parse().unwrap();
-    let spp: u32 = var("SPP", "2048").parse().unwrap();
     let base = prt_and_mc(
         &c,
         &imported,
@@ -557,9 +735,9 @@ fn sharp_lobe_diagnose() {
         );
     };
     report("default", &base.prt);
-    if arg("NOISE").is_ok() {
+    if noise {
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&imported);
-        let lobes = m.lobes().unwrap();
+        let lobes = m.lobes().map_err(flat)?;
         let coefficients = [
             m.coefficients[0].as_slice(),
             m.coefficients[1].as_slice(),
@@ -591,7 +769,7 @@ fn sharp_lobe_diagnose() {
             100.0 * rmse_where(&mc2, mc, Some(&sil)) / 2f64.sqrt()
         );
     }
-    let lobes = m.lobes().unwrap();
+    let lobes = m.lobes().map_err(flat)?;
     let coefficients = [
         m.coefficients[0].as_slice(),
         m.coefficients[1].as_slice(),
@@ -749,10 +927,11 @@ fn sharp_lobe_diagnose() {
     let total: f64 = rows.iter().map(|r| r.0).sum();
     let mut by_cos = [0.0f64; 5];
     for r in &rows {
-        by_cos[[0.05, 0.15, 0.3, 0.6, 2.0]
+        let bin = [0.05, 0.15, 0.3, 0.6, 2.0]
             .iter()
             .position(|&b| r.2 < b)
-            .unwrap()] += r.0 / total;
+            .with_context(|| format!("pixel {}: view cosine {} out of range", r.1, r.2))?;
+        by_cos[bin] += r.0 / total;
     }
     println!(
         "share of the squared error (G) by wo·n: <0.05 {:.2}, <0.15 {:.2}, <0.3 {:.2}, <0.6 {:.2}, ≥0.6 {:.2}",
@@ -777,6 +956,7 @@ fn sharp_lobe_diagnose() {
             vals.join(", ")
         );
     }
+    Ok(())
 }
 
 /// Study: the grazing case's remaining error split by ingredient at chosen pixels, by quadrature
@@ -796,19 +976,37 @@ fn sharp_lobe_diagnose() {
 /// %, Q with map L and cut V 0.45 %; the patched frame is 3.24 % off MC at 2048 spp (silhouette
 /// 4.02 %; unpatched 5.92 / 8.23 %). `cargo run --release --features studies --example
 /// render_studies -- sharp_lobe_quadrature` (MESH, ORBIT, ROT, SPP).
-fn sharp_lobe_quadrature() {
+fn sharp_lobe_quadrature() -> anyhow::Result<()> {
     use glam::{DVec3, Vec3A};
-    let var = |k: &str, d: &str| arg(k).unwrap_or(d.into());
-    let mesh = var("MESH", "bunny");
-    let samples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
-    let res: Option<usize> = arg("RES").ok().map(|r| r.parse().unwrap());
-    let c = {
-        let (mesh, env) = (
-            samples.join(format!("{mesh}.glb")),
-            arg("MAP").map_or_else(|_| samples.join("studio_1k.exr"), Into::into),
+    let mesh: String = setting("MESH", "bunny")?;
+    let samples = Path::new(env!("CARGO_MANIFEST_DIR")).join("samples");
+    let res: Option<usize> = optional_setting("RES")?;
+    let map = arg("MAP")?.map_or_else(|| samples.join("studio_1k.exr"), PathBuf::from);
+    let orbit: Vec<f32> = list_setting("ORBIT", "20,15,2.5")?;
+    let [az, el, dist] = orbit[..] else {
+        bail!(
+            "setting ORBIT: {} values, expected 3 (azimuth,elevation,distance)",
+            orbit.len()
         );
-        let scene = glint::scene::import(&mesh).unwrap();
-        let env = glint::env::load(&env).unwrap();
+    };
+    let rot: f64 = setting("ROT", "90")?;
+    let spp: u32 = setting("SPP", "1024")?;
+    let kk: usize = setting("K", "6")?;
+    let npx: usize = setting("N", "40")?;
+    let stride: usize = setting("STRIDE", "3")?;
+    if stride == 0 {
+        bail!("setting STRIDE=0: must be at least 1");
+    }
+    let gz: f64 = setting("GZ", "0.3")?;
+    let pix: Option<Vec<usize>> = match arg("PIX")? {
+        Some(p) => Some(parse_list("PIX", &p)?),
+        None => None,
+    };
+    let all = flag("ALL")?;
+    let c = {
+        let (mesh, env) = (samples.join(format!("{mesh}.glb")), map);
+        let scene = glint::scene::import(&mesh).map_err(flat)?;
+        let env = glint::env::load(&env).map_err(flat)?;
         let baker = Baker::new(
             &scene,
             &env,
@@ -817,12 +1015,12 @@ fn sharp_lobe_quadrature() {
                 ..BakeSettings::default()
             },
         )
-        .unwrap();
+        .map_err(flat)?;
         let bake = baker.bake_refined(None, &|_| {});
         let offset = baker.ray_offset();
         let (set, tree) = (baker.set.clone(), baker.tree.clone());
         drop(baker);
-        let scene = bake.scene(&scene).unwrap();
+        let scene = bake.scene(&scene).map_err(flat)?;
         let (_, tangents, _) = glint::bake::decisions::decide_frames(&scene.mesh);
         Case {
             scene,
@@ -836,19 +1034,11 @@ fn sharp_lobe_quadrature() {
     };
     println!("direction set {} per side", c.set.resolution());
     let imported = glint::scene::import(&samples.join(format!("{mesh}.glb")))
-        .unwrap()
+        .map_err(flat)?
         .mesh;
     let m = one_sharp_lobe();
     let (w, h) = (160u32, 120u32);
-    let orbit: Vec<f32> = var("ORBIT", "20,15,2.5")
-        .split(',')
-        .map(|x| x.parse().unwrap())
-        .collect();
-    let camera = glint::scene::orbit_camera(&c.scene.bounds, orbit[0], orbit[1], orbit[2], w, h);
-    let rot: f64 = var("ROT", "90").parse().unwrap();
-    let spp: u32 = var("SPP", "1024").parse().unwrap();
-    let kk: usize = var("K", "6").parse().unwrap();
-    let npx: usize = var("N", "40").parse().unwrap();
+    let camera = glint::scene::orbit_camera(&c.scene.bounds, az, el, dist, w, h);
     let pair = prt_and_mc(
         &c,
         &imported,
@@ -867,7 +1057,7 @@ fn sharp_lobe_quadrature() {
         100.0 * rmse_where(&pair.prt, &pair.mc, None),
         100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil))
     );
-    let lobes = m.lobes().unwrap();
+    let lobes = m.lobes().map_err(flat)?;
     let light = LightSums::new(&c.env, &c.set, &c.tree, rot.to_radians());
     let tracer = glint::bake::Tracer::new(&imported);
     let eye = camera.eye().as_dvec3();
@@ -896,11 +1086,12 @@ fn sharp_lobe_quadrature() {
     let mut chosen: Vec<usize> = rows.iter().take(npx).map(|r| r.1).collect();
     let mut rng = glint::math::rng::Rng::new(11);
     for _ in 0..npx {
-        chosen.push(rows[(rng.next_f64() * rows.len() as f64) as usize].1);
+        let row = rows
+            .get((rng.next_f64() * rows.len() as f64) as usize)
+            .context("no pixel of the object to choose from")?;
+        chosen.push(row.1);
     }
     // Then every `STRIDE`-th pixel seen at wo·n < 0.3 (class G).
-    let stride: usize = var("STRIDE", "3").parse().unwrap();
-    let gz: f64 = var("GZ", "0.3").parse().unwrap();
     let grazing: Vec<usize> = frags_ref
         .iter()
         .filter(|f| {
@@ -919,8 +1110,8 @@ fn sharp_lobe_quadrature() {
         .step_by(stride)
         .collect();
     chosen.extend(grazing);
-    if let Ok(p) = arg("PIX") {
-        chosen = p.split(',').map(|x| x.parse().unwrap()).collect();
+    if let Some(p) = pix {
+        chosen = p;
     }
     let variants: Vec<glint::render::Image> = [
         PrtSettings {
@@ -1079,10 +1270,7 @@ fn sharp_lobe_quadrature() {
                 q_rgb.map(|x| x as f32),
             );
         }
-        if class < 2
-            || arg("ALL").is_ok()
-            || (q[1] - q[0]).abs() > 0.03 * q[0]
-            || (prt - q[3]).abs() > 0.1 * q[3]
+        if class < 2 || all || (q[1] - q[0]).abs() > 0.03 * q[0] || (prt - q[3]).abs() > 0.1 * q[3]
         {
             println!(
                 "({:3},{:3}) {} {:.3} {:.4} {:.4} {:.4} {:.4} {:.4} {:.4} | 1° {:.4} 1°np {:.4}",
@@ -1140,6 +1328,7 @@ fn sharp_lobe_quadrature() {
         100.0 * rmse_where(&pair.prt, &pair.mc, None),
         100.0 * rmse_where(&pair.prt, &pair.mc, Some(&sil))
     );
+    Ok(())
 }
 
 /// Study: `render_studies bake_error MESH=bunny MAP=studio_1k CONFIGS=5.625:2:0,11.25:3:0.002`
@@ -1147,28 +1336,26 @@ fn sharp_lobe_quadrature() {
 /// (cell degrees : boundary levels : boundary budget), and prints rays, seconds and the relative RMS
 /// error of the irradiance of the map's luminance over the vertices against a ray per direction,
 /// at the rotations ROTS (degrees about +Y).
-fn bake_error() {
-    let mesh = arg("MESH").unwrap_or_else(|_| "bunny".into());
-    let map = arg("MAP").unwrap_or_else(|_| "studio_1k".into());
-    let configs: Vec<(f64, u32, f64)> = arg("CONFIGS")
-        .unwrap_or_else(|_| "5.625:2:0".into())
+fn bake_error() -> anyhow::Result<()> {
+    const KEY: &str = "CONFIGS";
+    let mesh: String = setting("MESH", "bunny")?;
+    let map: String = setting("MAP", "studio_1k")?;
+    let configs: Vec<(f64, u32, f64)> = setting::<String>(KEY, "5.625:2:0")?
         .split(',')
         .map(|c| {
-            let f: Vec<&str> = c.split(':').collect();
-            (
-                f[0].parse().unwrap(),
-                f[1].parse().unwrap(),
-                f[2].parse().unwrap(),
-            )
+            let [cell, levels, budget] = fields(KEY, c, "cell_deg:levels:budget", 3)?;
+            Ok((
+                field(KEY, c, "cell_deg", cell)?,
+                field(KEY, c, "levels", levels)?,
+                field(KEY, c, "budget", budget)?,
+            ))
         })
-        .collect();
-    let rots: Vec<f64> = arg("ROTS")
-        .unwrap_or_else(|_| "0,90,180,270".into())
-        .split(',')
-        .map(|s| s.parse().unwrap())
-        .collect();
-    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).unwrap();
-    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).unwrap();
+        .collect::<anyhow::Result<_>>()?;
+    let rots: Vec<f64> = list_setting("ROTS", "0,90,180,270")?;
+    let skip_reference = arg("EXACT")?.as_deref() == Some("0");
+    let scene =
+        glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb"))).map_err(flat)?;
+    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr"))).map_err(flat)?;
     let base = BakeSettings {
         refine: glint::bake::RefineSettings {
             rounds: 0,
@@ -1183,7 +1370,7 @@ fn bake_error() {
         settings.boundary_levels = Some(levels);
         settings.cut.boundary_budget = budget;
         let t0 = std::time::Instant::now();
-        let baker = Baker::new(&scene, &env, settings).unwrap();
+        let baker = Baker::new(&scene, &env, settings).map_err(flat)?;
         let bake = baker.bake_all(None, &|_| {});
         let secs = t0.elapsed().as_secs_f64();
         let irradiance: Vec<Vec<f64>> = rots
@@ -1206,19 +1393,19 @@ fn bake_error() {
                     .collect()
             })
             .collect();
-        (bake.stats.rays_traced, secs, irradiance)
+        anyhow::Ok((bake.stats.rays_traced, secs, irradiance))
     };
     // EXACT=0 skips the reference (errors print as NaN).
-    let (exact_rays, exact_secs, exact) = if arg("EXACT").as_deref() == Ok("0") {
+    let (exact_rays, exact_secs, exact) = if skip_reference {
         (0, 0.0, vec![Vec::new(); rots.len()])
     } else {
-        bake_with(0.0, 0, 0.0)
+        bake_with(0.0, 0, 0.0)?
     };
     println!("{mesh} under {map}: a ray per direction {exact_rays} rays, {exact_secs:.2} s");
     println!("| cells | levels | budget | rays | bake (s) | error per rotation ({rots:?}) |");
     println!("|---|---|---|---|---|---|");
     for &(cell, levels, budget) in &configs {
-        let (rays, secs, e) = bake_with(cell, levels, budget);
+        let (rays, secs, e) = bake_with(cell, levels, budget)?;
         let errors: Vec<String> = e
             .iter()
             .zip(&exact)
@@ -1237,4 +1424,5 @@ fn bake_error() {
             errors.join(", ")
         );
     }
+    Ok(())
 }
