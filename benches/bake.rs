@@ -211,6 +211,7 @@ fn rays() -> anyhow::Result<()> {
         "| mesh | triangles | tracer | build (s) | rays | trace (s), median of 3 | M rays/s | occluded |"
     );
     println!("|---|---|---|---|---|---|---|---|");
+    let mut grouping = Vec::new();
     for mesh in ["bunny", "dragon", "dragon_100k"] {
         let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
         let m = &scene.mesh;
@@ -307,9 +308,113 @@ fn rays() -> anyhow::Result<()> {
                 secs,
                 hits,
             );
+            grouping.push(grouping_row(mesh, m, &tracer, &dirs, offset));
+        }
+    }
+    if !grouping.is_empty() {
+        println!();
+        println!(
+            "| mesh | rays | packets of 16 per vertex: trace (s), median of 3 | M rays/s | packets of 16 across 16 vertices: trace (s), median of 3 | M rays/s | occluded (both) |"
+        );
+        println!("|---|---|---|---|---|---|---|");
+        for row in grouping {
+            println!("{row}");
         }
     }
     Ok(())
+}
+
+/// The same rays grouped two ways, for Embree's packets of 16: 64 patches of 16 vertices
+/// consecutive in Morton order (neighbours, as a thread of the bake takes them), each vertex with
+/// the rays bench's cell directions above its tangent plane. Per vertex: a vertex's rays in leaf
+/// order (the bake's packets). Across vertices: one direction from every vertex of the patch that
+/// sees it, then the next direction (same direction, nearby origins).
+fn grouping_row(
+    mesh: &str,
+    m: &glint::scene::Mesh,
+    tracer: &glint::bake::tracer::Tracer,
+    dirs: &[glam::Vec3A],
+    offset: f32,
+) -> String {
+    use glam::Vec3A;
+    use rayon::prelude::*;
+    let (lo, hi) = m.positions.iter().fold(
+        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let spread = |x: u64| {
+        let mut x = x & 0x1f_ffff;
+        x = (x | x << 32) & 0x001f_0000_0000_ffff;
+        x = (x | x << 16) & 0x001f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        x = (x | x << 2) & 0x1249_2492_4924_9249;
+        x
+    };
+    let code = |p: glam::Vec3| {
+        let q = ((p - lo) / (hi - lo).max(glam::Vec3::splat(1e-30)) * 2_097_151.0).as_u64vec3();
+        spread(q.x) | spread(q.y) << 1 | spread(q.z) << 2
+    };
+    let mut order: Vec<usize> = (0..m.positions.len()).collect();
+    order.sort_by_key(|&i| code(m.positions[i]));
+    let patches: Vec<Vec<(Vec3A, Vec3A)>> = (0..64)
+        .map(|k| {
+            let start = (k * order.len() / 64).min(order.len().saturating_sub(16));
+            order[start..(start + 16).min(order.len())]
+                .iter()
+                .map(|&i| {
+                    let n = m.normals[i];
+                    ((m.positions[i] + n * offset).into(), n.into())
+                })
+                .collect()
+        })
+        .collect();
+    let per_vertex = |patch: &Vec<(Vec3A, Vec3A)>| {
+        patch
+            .iter()
+            .map(|(o, n)| {
+                let ds: Vec<Vec3A> = dirs.iter().copied().filter(|d| d.dot(*n) > 0.0).collect();
+                let mut out = vec![false; ds.len()];
+                tracer.occluded_from(*o, &ds, &mut out);
+                (ds.len(), out.iter().filter(|&&h| h).count())
+            })
+            .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    };
+    let across = |patch: &Vec<(Vec3A, Vec3A)>| {
+        let (origins, ds): (Vec<Vec3A>, Vec<Vec3A>) = dirs
+            .iter()
+            .flat_map(|d| {
+                patch
+                    .iter()
+                    .filter(move |(_, n)| d.dot(*n) > 0.0)
+                    .map(move |(o, _)| (*o, *d))
+            })
+            .unzip();
+        let mut out = vec![false; ds.len()];
+        tracer.occluded_rays(&origins, &ds, &mut out);
+        (ds.len(), out.iter().filter(|&&h| h).count())
+    };
+    let sum = |f: &(dyn Fn(&Vec<(Vec3A, Vec3A)>) -> (usize, usize) + Sync)| {
+        median_of(3, || {
+            patches
+                .par_iter()
+                .map(f)
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+        })
+    };
+    let (t_vertex, (rays, hits_vertex)) = sum(&per_vertex);
+    let (t_across, (_, hits_across)) = sum(&across);
+    let occluded = if hits_vertex == hits_across {
+        format!("{:.2} %", 100.0 * hits_vertex as f64 / rays as f64)
+    } else {
+        format!("{hits_vertex} / {hits_across} rays (differ)")
+    };
+    format!(
+        "| {mesh} | {:.2} M | {t_vertex:.3} | {:.2} | {t_across:.3} | {:.2} | {occluded} |",
+        rays as f64 / 1e6,
+        rays as f64 / t_vertex / 1e6,
+        rays as f64 / t_across / 1e6,
+    )
 }
 
 const MESHES: [&str; 5] = ["bunny", "teapot", "suzanne", "dragon", "dragon_100k"];

@@ -235,6 +235,48 @@ impl EmbreeTracer {
         self.occluded_packets::<8>(rtcOccluded8, origin, dirs, out);
     }
 
+    /// `out[i]` = [`EmbreeTracer::occluded`] of the ray from `origins[i]` along `dirs[i]`, in
+    /// packets of 16 as [`EmbreeTracer::occluded_from`] traces them, each ray from its own origin:
+    /// for rays of one direction from neighbouring points (the rays bench's grouping across
+    /// vertices).
+    pub fn occluded_rays(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
+        let mut context = RtcIntersectContext {
+            flags: CONTEXT_COHERENT,
+            filter: std::ptr::null(),
+            inst_id: [INVALID_GEOMETRY_ID],
+        };
+        for ((p, d), o) in origins
+            .chunks(16)
+            .zip(dirs.chunks(16))
+            .zip(out.chunks_mut(16))
+        {
+            let mut valid = ValidN([0; 16]);
+            let mut ray = RtcRayN::<16> {
+                org: [[0.0; 16]; 3],
+                tnear: [0.0; 16],
+                dir: [[0.0; 16]; 3],
+                time: [0.0; 16],
+                tfar: [f32::INFINITY; 16],
+                mask: [u32::MAX; 16],
+                id: [0; 16],
+                flags: [0; 16],
+            };
+            for (lane, (origin, dir)) in p.iter().zip(d).enumerate() {
+                valid.0[lane] = -1;
+                for axis in 0..3 {
+                    ray.org[axis][lane] = origin[axis];
+                    ray.dir[axis][lane] = dir[axis];
+                }
+            }
+            // SAFETY: the scene is committed; valid and ray are 64-byte aligned and valid for the
+            // call.
+            unsafe { rtcOccluded16(valid.0.as_ptr(), self.scene, &mut context, &mut ray) };
+            for (lane, o) in o.iter_mut().enumerate() {
+                *o = ray.tfar[lane] == f32::NEG_INFINITY;
+            }
+        }
+    }
+
     fn occluded_packets<const N: usize>(
         &self,
         trace: OccludedN<N>,

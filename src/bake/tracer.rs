@@ -307,6 +307,23 @@ impl Tracer {
         self.occluded_from(origin, dirs, out);
     }
 
+    /// `out[i]` = [`Tracer::occluded`] of the ray from `origins[i]` along `dirs[i]`: Embree's
+    /// packets of 16 with an origin per ray where Embree traces, else one ray at a time. For the
+    /// rays bench's grouping of one direction across neighbouring vertices.
+    pub fn occluded_rays(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
+        debug_assert!(origins.len() == dirs.len() && dirs.len() == out.len());
+        #[cfg(embree)]
+        if let (Rays::Embree(e), true, false) =
+            (&self.rays, self.packets, self.bvh2.nodes.is_empty())
+        {
+            e.occluded_rays(origins, dirs, out);
+            return;
+        }
+        for ((p, d), o) in origins.iter().zip(dirs).zip(out.iter_mut()) {
+            *o = self.occluded(*p, *d);
+        }
+    }
+
     /// Bit i: ray i of the packet (at most [`PACKET`] rays) is occluded.
     fn packet_occluded(&self, origin: Vec3A, dirs: &[Vec3A]) -> u32 {
         const N: usize = PACKET;
@@ -689,6 +706,24 @@ mod tests {
             assert!(
                 differ * 20_000 <= n,
                 "{backend:?}: {differ} of {n} rays differ"
+            );
+            // Every group's rays in one list, each from its own origin, packed across groups.
+            let (origins, dirs): (Vec<Vec3A>, Vec<Vec3A>) = groups
+                .iter()
+                .flat_map(|(o, ds)| ds.iter().map(move |d| (*o, *d)))
+                .unzip();
+            let mut out = vec![false; dirs.len()];
+            tracer.occluded_rays(&origins, &dirs, &mut out);
+            let differ = origins
+                .iter()
+                .zip(&dirs)
+                .zip(&out)
+                .filter(|((o, d), hit)| tracer.occluded(**o, **d) != **hit)
+                .count();
+            assert!(
+                differ * 20_000 <= dirs.len(),
+                "{backend:?}: {differ} of {} rays from their own origins differ",
+                dirs.len()
             );
         }
     }
