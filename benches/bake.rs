@@ -357,7 +357,7 @@ fn grouping_row(
     };
     let mut order: Vec<usize> = (0..m.positions.len()).collect();
     order.sort_by_key(|&i| code(m.positions[i]));
-    let patches: Vec<Vec<(Vec3A, Vec3A)>> = (0..64)
+    let patches: Vec<Patch> = (0..64)
         .map(|k| {
             let start = (k * order.len() / 64).min(order.len().saturating_sub(16));
             order[start..(start + 16).min(order.len())]
@@ -369,7 +369,7 @@ fn grouping_row(
                 .collect()
         })
         .collect();
-    let per_vertex = |patch: &Vec<(Vec3A, Vec3A)>| {
+    let per_vertex = |patch: &Patch| {
         patch
             .iter()
             .map(|(o, n)| {
@@ -380,7 +380,7 @@ fn grouping_row(
             })
             .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     };
-    let across = |patch: &Vec<(Vec3A, Vec3A)>| {
+    let across = |patch: &Patch| {
         let (origins, ds): (Vec<Vec3A>, Vec<Vec3A>) = dirs
             .iter()
             .flat_map(|d| {
@@ -394,7 +394,9 @@ fn grouping_row(
         tracer.occluded_rays(&origins, &ds, &mut out);
         (ds.len(), out.iter().filter(|&&h| h).count())
     };
-    let sum = |f: &(dyn Fn(&Vec<(Vec3A, Vec3A)>) -> (usize, usize) + Sync)| {
+    // A patch: each vertex's ray origin and normal.
+    type Patch = Vec<(Vec3A, Vec3A)>;
+    let sum = |f: &(dyn Fn(&Patch) -> (usize, usize) + Sync)| {
         median_of(3, || {
             patches
                 .par_iter()
