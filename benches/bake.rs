@@ -95,26 +95,14 @@ fn run() -> anyhow::Result<()> {
 
 /// Median of `n` (at least 1) timed runs of `f` (seconds), and the last result.
 fn median_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut times = Vec::with_capacity(n.max(1));
-    let mut timed = || {
-        let t = Instant::now();
-        let out = std::hint::black_box(f());
-        times.push(t.elapsed().as_secs_f64());
-        out
-    };
-    let mut last = timed();
-    for _ in 1..n {
-        last = timed();
+    match try_median_of(n, || Ok::<T, std::convert::Infallible>(f())) {
+        Ok(timed) => timed,
+        Err(never) => match never {},
     }
-    times.sort_by(f64::total_cmp);
-    (times[times.len() / 2], last)
 }
 
 /// [`median_of`] for a fallible `f`: the first error ends the runs.
-fn try_median_of<T>(
-    n: usize,
-    mut f: impl FnMut() -> anyhow::Result<T>,
-) -> anyhow::Result<(f64, T)> {
+fn try_median_of<T, E>(n: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<(f64, T), E> {
     let mut times = Vec::with_capacity(n.max(1));
     let mut timed = || {
         let t = Instant::now();
@@ -465,7 +453,7 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) -> any
                     .boundary_levels
                     > 0;
             let bake = |baseline: Option<Baseline>| {
-                try_median_of(3, || {
+                try_median_of(3, || -> anyhow::Result<_> {
                     let mut settings = BakeSettings::default();
                     settings.refine.interpolate = baseline != Some(Baseline::EveryVertexTraced);
                     if baseline == Some(Baseline::Unbudgeted) && refines {

@@ -25,15 +25,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    median(
-        (0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                std::hint::black_box(f());
-                t.elapsed().as_secs_f64() * 1e3
-            })
-            .collect(),
-    )
+    match try_time(reps, || Ok::<T, std::convert::Infallible>(f())) {
+        Ok(secs) => secs,
+        Err(never) => match never {},
+    }
 }
 
 /// [`time`] for a fallible `f`: the first error ends the runs.

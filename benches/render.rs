@@ -37,19 +37,13 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    median(
-        (0..reps)
-            .map(|_| {
-                let t = Instant::now();
-                std::hint::black_box(f());
-                t.elapsed().as_secs_f64()
-            })
-            .collect(),
-    )
+    match try_time(reps, || Ok::<T, std::convert::Infallible>(f())) {
+        Ok(secs) => secs,
+        Err(never) => match never {},
+    }
 }
 
 /// [`time`] for a fallible `f`: the first error ends the runs.
-#[cfg(feature = "gui")]
 fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
     let mut times = Vec::with_capacity(reps);
     for _ in 0..reps {
