@@ -200,6 +200,7 @@ fn rays() -> anyhow::Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|");
     let mut grouping = Vec::new();
+    let mut by_call = Vec::new();
     for mesh in ["bunny", "dragon", "dragon_100k"] {
         let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
         let m = &scene.mesh;
@@ -235,16 +236,20 @@ fn rays() -> anyhow::Result<()> {
                     .sum::<usize>()
             })
         };
-        let packets = |tracer: &Tracer, eight: bool| {
+        // A vertex's rays in calls of at most `call` consecutive directions (0: one call).
+        let packets = |tracer: &Tracer, how: Grouped, call: usize| {
             median_of(3, || {
                 vertices
                     .par_iter()
                     .map(|(o, ds)| {
                         let mut out = vec![false; ds.len()];
-                        if eight {
-                            tracer.occluded_from_8(*o, ds, &mut out);
-                        } else {
-                            tracer.occluded_from(*o, ds, &mut out);
+                        let call = if call == 0 { ds.len().max(1) } else { call };
+                        for (d, out) in ds.chunks(call).zip(out.chunks_mut(call)) {
+                            match how {
+                                Grouped::Eights => tracer.occluded_from_8(*o, d, out),
+                                Grouped::Sixteens => tracer.occluded_from_packets(*o, d, out),
+                                Grouped::Bake => tracer.occluded_from(*o, d, out),
+                            }
                         }
                         out.iter().filter(|&&h| h).count()
                     })
@@ -274,7 +279,7 @@ fn rays() -> anyhow::Result<()> {
         let t = Instant::now();
         let tracer = Tracer::with_backend(m, Backend::Obvhs);
         let build = t.elapsed().as_secs_f64();
-        let (secs, hits) = packets(&tracer, false);
+        let (secs, hits) = packets(&tracer, Grouped::Bake, 0);
         row(
             &format!("obvhs BVH2, packets of {PACKET}"),
             build,
@@ -287,29 +292,93 @@ fn rays() -> anyhow::Result<()> {
             let build = t.elapsed().as_secs_f64();
             let (secs, hits) = singles(&tracer);
             row("Embree 3, one ray at a time", build, secs, hits);
-            let (secs, hits) = packets(&tracer, true);
+            let (secs, hits) = packets(&tracer, Grouped::Eights, 0);
             row("Embree 3, packets of 8", build, secs, hits);
-            let (secs, hits) = packets(&tracer, false);
+            let (secs, hits) = packets(&tracer, Grouped::Sixteens, 0);
+            row("Embree 3, packets of 16", build, secs, hits);
+            let (secs, hits) = packets(&tracer, Grouped::Bake, 0);
             row(
-                "Embree 3, packets of 16 (the bake's tracer)",
+                "Embree 3, one stream per vertex (the bake's tracer)",
                 build,
                 secs,
                 hits,
             );
+            let total: usize = vertices.iter().map(|(_, ds)| ds.len()).sum();
+            for call in [8, 16, 32, 64, 128] {
+                let (a, _) = packets(&tracer, Grouped::Sixteens, call);
+                let b = {
+                    // The stream at every size of call, STREAM_MIN aside.
+                    let (secs, _) = median_of(3, || {
+                        vertices
+                            .par_iter()
+                            .map(|(o, ds)| {
+                                let mut out = vec![false; ds.len()];
+                                for (d, out) in ds.chunks(call).zip(out.chunks_mut(call)) {
+                                    tracer.occluded_stream(*o, d, out);
+                                }
+                                out.iter().filter(|&&h| h).count()
+                            })
+                            .sum::<usize>()
+                    });
+                    secs
+                };
+                by_call.push(format!(
+                    "| {mesh} | {call} | {:.2} | {:.2} |",
+                    total as f64 / a / 1e6,
+                    total as f64 / b / 1e6
+                ));
+            }
             grouping.push(grouping_row(mesh, m, &tracer, &dirs, offset));
         }
     }
-    if !grouping.is_empty() {
-        println!();
-        println!(
-            "| mesh | rays | packets of 16 per vertex: trace (s), median of 3 | M rays/s | packets of 16 across 16 vertices: trace (s), median of 3 | M rays/s | occluded (both) |"
-        );
-        println!("|---|---|---|---|---|---|---|");
-        for row in grouping {
-            println!("{row}");
-        }
-    }
+    table(
+        &[
+            "mesh",
+            "rays per call",
+            "Embree packets of 16: M rays/s, median of 3",
+            "Embree stream: M rays/s, median of 3",
+        ],
+        &by_call,
+    );
+    table(
+        &[
+            "mesh",
+            "rays",
+            "packets of 16 per vertex: trace (s), median of 3",
+            "M rays/s",
+            "packets of 16 across 16 vertices: trace (s), median of 3",
+            "M rays/s",
+            "occluded (both)",
+        ],
+        &grouping,
+    );
     Ok(())
+}
+
+/// Prints a Markdown table of `rows` (each already a `| … |` line) under `header`, after an empty
+/// line; nothing where there are no rows.
+fn table(header: &[&str], rows: &[String]) {
+    if rows.is_empty() {
+        return;
+    }
+    println!();
+    println!("| {} |", header.join(" | "));
+    println!("|{}", "---|".repeat(header.len()));
+    for row in rows {
+        println!("{row}");
+    }
+}
+
+/// How the rays bench hands a vertex's rays to the tracer.
+#[derive(Clone, Copy)]
+enum Grouped {
+    /// Embree's packets of 8 ([`glint::bake::tracer::Tracer::occluded_from_8`]).
+    Eights,
+    /// Embree's packets of 16 at every size of call
+    /// ([`glint::bake::tracer::Tracer::occluded_from_packets`]).
+    Sixteens,
+    /// As the bake does ([`glint::bake::tracer::Tracer::occluded_from`]).
+    Bake,
 }
 
 /// The same rays grouped two ways, for Embree's packets of 16: 64 patches of 16 vertices

@@ -5,7 +5,10 @@
 //! the same any-hit answer as [`super::tracer::Tracer::occluded`] for a ray from `origin` along
 //! `dir`, t in [0, ∞), from Embree's own BVH and `rtcOccluded1` (robust triangle test, so a ray
 //! through a shared edge is never let through); [`EmbreeTracer::occluded_from`], many rays from
-//! one origin in packets of 16 (`rtcOccluded16`; a last one of at most 8 rays as `rtcOccluded8`).
+//! one origin: in a large scene ([`STREAM_TRIANGLES`]) from [`STREAM_MIN`] rays on as one stream
+//! (`rtcOccluded1M`, incoherent: Embree sorts the stream's rays by octant and traverses them
+//! together), else in packets of 16 (`rtcOccluded16`; a last one of at most 8 rays as
+//! `rtcOccluded8`).
 //!
 //! The binding is the few C entry points it needs, declared here against Embree 3.13's headers
 //! (`/usr/include/embree3`; `build.rs` checks their configuration); nothing else of Embree is
@@ -77,6 +80,13 @@ unsafe extern "C" {
     fn rtcSetGeometryBuildQuality(geometry: RtcGeometry, quality: c_uint);
     fn rtcAttachGeometry(scene: RtcScene, geometry: RtcGeometry) -> c_uint;
     fn rtcOccluded1(scene: RtcScene, context: *mut RtcIntersectContext, ray: *mut RtcRay);
+    fn rtcOccluded1M(
+        scene: RtcScene,
+        context: *mut RtcIntersectContext,
+        ray: *mut RtcRay,
+        m: c_uint,
+        byte_stride: usize,
+    );
     fn rtcOccluded8(
         valid: *const c_int,
         scene: RtcScene,
@@ -111,10 +121,33 @@ struct ValidN<const N: usize>([c_int; N]);
 type OccludedN<const N: usize> =
     unsafe extern "C" fn(*const c_int, RtcScene, *mut RtcIntersectContext, *mut RtcRayN<N>);
 
+/// Calls of [`EmbreeTracer::occluded_from`] with at least this many rays go to Embree as one
+/// stream, in a scene of at least [`STREAM_TRIANGLES`] triangles; the rest, in packets. From
+/// `cargo bench --bench bake -- rays` (a vertex's rays traced in calls of 8 to 128 consecutive
+/// directions, the sizes of the bake's calls; docs/benchmarks.md): on dragon_100k the stream
+/// traced 1.1–1.2× the rays per second of packets of 16 in calls of 32 rays and more, and about
+/// the same in calls of 8 and 16.
+pub const STREAM_MIN: usize = 32;
+
+/// Scenes of at least this many triangles use Embree's streams ([`STREAM_MIN`]). Its stream
+/// traversal shares each BVH node it fetches among up to 64 rays, which pays where the BVH does
+/// not stay in a core's cache: on dragon_100k (100 K triangles) the stream was faster than
+/// packets of 16, on dragon.glb (30 K) about as fast and on the bunny (3.7 K) 0.6× as fast (`cargo
+/// bench --bench bake -- rays`).
+pub const STREAM_TRIANGLES: usize = 65_536;
+
+thread_local! {
+    /// [`EmbreeTracer::occluded_stream`]'s rays, kept per thread between calls.
+    static STREAM: std::cell::RefCell<Vec<RtcRay>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// A committed Embree scene of the mesh's triangles.
 pub struct EmbreeTracer {
     device: RtcDevice,
     scene: RtcScene,
+    /// Whether [`EmbreeTracer::occluded_from`] may use streams: a scene of at least
+    /// [`STREAM_TRIANGLES`] triangles.
+    stream: bool,
 }
 
 // SAFETY: the scene is committed in `new` and never modified; Embree allows concurrent queries on
@@ -146,7 +179,11 @@ impl EmbreeTracer {
                 return Err(EmbreeError(-1));
             }
             let scene = rtcNewScene(device);
-            let this = Self { device, scene };
+            let this = Self {
+                device,
+                scene,
+                stream: indices.len() >= STREAM_TRIANGLES,
+            };
             // High quality (spatial splits) traced dragon_100k's bake rays 1.2–1.8× faster than
             // low or medium, and the compact layout, which saves ~40 MiB at 1.6 M triangles,
             // 1.2× slower (`cargo bench --bench bake -- rays million`).
@@ -215,12 +252,69 @@ impl EmbreeTracer {
         ray.tfar == f32::NEG_INFINITY
     }
 
-    /// `out[i]` = [`EmbreeTracer::occluded`] of the ray from `origin` along `dirs[i]`, traced as
-    /// packets of 16 (`rtcOccluded16`, coherent), the last as a packet of 8 where at most 8 rays
-    /// are left: 16 traced 1.1–1.4× the rays per second of 8 (`cargo bench --bench bake -- rays`),
-    /// but a half-empty 16 cost the bunny's bake under interior_1k, whose boundary levels trace
-    /// a few quarters at a time, ~10 % (4 alternating pairs).
+    /// `out[i]` = [`EmbreeTracer::occluded`] of the ray from `origin` along `dirs[i]`: in a
+    /// scene of at least [`STREAM_TRIANGLES`] triangles as one stream from [`STREAM_MIN`] rays on
+    /// ([`EmbreeTracer::occluded_stream`]), else in packets
+    /// ([`EmbreeTracer::occluded_from_packets`]).
     pub fn occluded_from(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        if self.stream && dirs.len() >= STREAM_MIN {
+            self.occluded_stream(origin, dirs, out);
+        } else {
+            self.occluded_from_packets(origin, dirs, out);
+        }
+    }
+
+    /// [`EmbreeTracer::occluded_from`] as one stream of single rays (`rtcOccluded1M`) with the
+    /// incoherent hint, under which Embree 3 sorts the stream by octant and traverses up to 64
+    /// rays at once (its stream traversal); with the coherent hint it would cut the stream into
+    /// packets in order, as [`EmbreeTracer::occluded_from_packets`] does.
+    pub fn occluded_stream(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        let mut context = RtcIntersectContext {
+            flags: CONTEXT_INCOHERENT,
+            filter: std::ptr::null(),
+            inst_id: [INVALID_GEOMETRY_ID],
+        };
+        STREAM.with_borrow_mut(|rays| {
+            rays.clear();
+            rays.extend(dirs.iter().map(|d| RtcRay {
+                org: origin.to_array(),
+                tnear: 0.0,
+                dir: d.to_array(),
+                time: 0.0,
+                tfar: f32::INFINITY,
+                mask: u32::MAX,
+                id: 0,
+                flags: 0,
+            }));
+            for (chunk, o) in rays
+                .chunks_mut(c_uint::MAX as usize)
+                .zip(out.chunks_mut(c_uint::MAX as usize))
+            {
+                // SAFETY: the scene is committed; `chunk` holds `chunk.len()` valid rays laid out
+                // as Embree's `RTCRay` (48 bytes, 16-byte aligned), `size_of::<RtcRay>()` apart.
+                unsafe {
+                    rtcOccluded1M(
+                        self.scene,
+                        &mut context,
+                        chunk.as_mut_ptr(),
+                        chunk.len() as c_uint,
+                        std::mem::size_of::<RtcRay>(),
+                    )
+                };
+                for (o, r) in o.iter_mut().zip(chunk.iter()) {
+                    *o = r.tfar == f32::NEG_INFINITY;
+                }
+            }
+        });
+    }
+
+    /// [`EmbreeTracer::occluded_from`] in packets of 16 (`rtcOccluded16`, coherent), the last as
+    /// a packet of 8 where at most 8 rays are left: 16 traced 1.1–1.4× the rays per second of 8
+    /// (`cargo bench --bench bake -- rays`), but a half-empty 16 cost the bunny's bake under
+    /// interior_1k, whose boundary levels trace a few quarters at a time, ~10 % (4 alternating
+    /// pairs). What every call used before the stream; kept for calls of fewer than
+    /// [`STREAM_MIN`] rays and for the benches' side by side.
+    pub fn occluded_from_packets(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
         let n = dirs.len();
         let sixteens = if n % 16 > 8 { n } else { n / 16 * 16 };
         let (dirs, tail) = dirs.split_at(sixteens);

@@ -294,13 +294,45 @@ impl Tracer {
         }
     }
 
+    /// [`Tracer::occluded_from`] with Embree's packets of 16 at any size of call (what every call
+    /// used before Embree's streams, [`super::embree::STREAM_MIN`]) where Embree traces, for the
+    /// benches' side by side; the same answers.
+    pub fn occluded_from_packets(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        #[cfg(embree)]
+        if let Some(e) = self.embree_packets() {
+            e.occluded_from_packets(origin, dirs, out);
+            return;
+        }
+        self.occluded_from(origin, dirs, out);
+    }
+
+    /// Embree's tracer, where it traces this mesh's rays and packets are on: the benches'
+    /// variants of [`Tracer::occluded_from`] call it directly.
+    #[cfg(embree)]
+    fn embree_packets(&self) -> Option<&super::embree::EmbreeTracer> {
+        match (&self.rays, self.packets, self.bvh2.nodes.is_empty()) {
+            (Rays::Embree(e), true, false) => Some(e),
+            _ => None,
+        }
+    }
+
+    /// [`Tracer::occluded_from`] as one Embree stream at any size of call where Embree traces
+    /// ([`super::embree::EmbreeTracer::occluded_stream`]), for the benches' side by side; the same
+    /// answers.
+    pub fn occluded_stream(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        #[cfg(embree)]
+        if let Some(e) = self.embree_packets() {
+            e.occluded_stream(origin, dirs, out);
+            return;
+        }
+        self.occluded_from(origin, dirs, out);
+    }
+
     /// [`Tracer::occluded_from`] with Embree's packets of 8 (`rtcOccluded8`) where Embree traces,
     /// for the benches' side by side; the same answers.
     pub fn occluded_from_8(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
         #[cfg(embree)]
-        if let (Rays::Embree(e), true, false) =
-            (&self.rays, self.packets, self.bvh2.nodes.is_empty())
-        {
+        if let Some(e) = self.embree_packets() {
             e.occluded_from_8(origin, dirs, out);
             return;
         }
@@ -313,9 +345,7 @@ impl Tracer {
     pub fn occluded_rays(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
         debug_assert!(origins.len() == dirs.len() && dirs.len() == out.len());
         #[cfg(embree)]
-        if let (Rays::Embree(e), true, false) =
-            (&self.rays, self.packets, self.bvh2.nodes.is_empty())
-        {
+        if let Some(e) = self.embree_packets() {
             e.occluded_rays(origins, dirs, out);
             return;
         }
@@ -688,15 +718,18 @@ mod tests {
             assert_eq!(tracer.backend(), backend);
             let (mut n, mut hits, mut differ) = (0usize, 0usize, 0usize);
             for (origin, dirs) in &groups {
-                // Embree's packets of 16 (with a tail of 8) and of 8 alike.
-                let (mut out, mut out_8) = (vec![false; dirs.len()], vec![false; dirs.len()]);
-                tracer.occluded_from(*origin, dirs, &mut out);
-                tracer.occluded_from_8(*origin, dirs, &mut out_8);
-                for ((d, &packet), &packet_8) in dirs.iter().zip(&out).zip(&out_8) {
+                // The bake's calls, Embree's streams, packets of 16 (with a tail of 8) and of 8
+                // alike.
+                let mut out = [(); 4].map(|_| vec![false; dirs.len()]);
+                tracer.occluded_from(*origin, dirs, &mut out[0]);
+                tracer.occluded_stream(*origin, dirs, &mut out[1]);
+                tracer.occluded_from_packets(*origin, dirs, &mut out[2]);
+                tracer.occluded_from_8(*origin, dirs, &mut out[3]);
+                for (i, d) in dirs.iter().enumerate() {
                     let single = tracer.occluded(*origin, *d);
                     n += 1;
                     hits += single as usize;
-                    differ += (single != packet) as usize + (single != packet_8) as usize;
+                    differ += out.iter().filter(|o| o[i] != single).count();
                 }
             }
             assert!(
