@@ -8,7 +8,7 @@
 //!   once), then read back from the disk cache; median of 3 each, side by side in one run.
 //! - `rays`: the bake's rays (cell directions above the tangent plane at ~1,000 vertices) one at a
 //!   time through the CWBVH (three build qualities) and in packets through the BVH2, and through
-//!   Embree one at a time and in packets where the build has it, side by side.
+//!   Embree one at a time, in packets and in streams where the build has it, side by side.
 //! - `million`: the 1.6 M-triangle mesh (dragon_100k split twice): bake time, peak memory and the
 //!   visibility error at 400 vertices.
 //! - `matrix`: `glint bake`'s default bake (decisions, refinement) of each of bunny, teapot,
@@ -176,8 +176,10 @@ fn energy() -> anyhow::Result<()> {
 /// diagonal along the normal) along the mean direction of every 5.625° visibility cell above its
 /// tangent plane (a 64-per-side direction set's light tree, cells of ≤ 12 leaves, in leaf order as
 /// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
-/// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8 and in packets
-/// of 16 (the bake's tracer where the build has Embree), side by side.
+/// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8, in packets of
+/// 16 and as the bake calls it (one stream per vertex in a scene of at least 65,536 triangles,
+/// [`glint::bake::embree::STREAM_TRIANGLES`]; packets of 16 below), side by side; then Embree's
+/// packets of 16 against its stream, each vertex's rays in calls of 8 to 128.
 fn rays() -> anyhow::Result<()> {
     use glam::{Vec3, Vec3A};
     use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};
@@ -298,7 +300,7 @@ fn rays() -> anyhow::Result<()> {
             row("Embree 3, packets of 16", build, secs, hits);
             let (secs, hits) = packets(&tracer, Grouped::Bake, 0);
             row(
-                "Embree 3, one stream per vertex (the bake's tracer)",
+                "Embree 3, as the bake calls it (a stream from 65,536 triangles)",
                 build,
                 secs,
                 hits,
