@@ -36,6 +36,9 @@ use std::time::Instant;
 
 #[path = "../tests/it/common.rs"]
 mod common;
+#[path = "support/timing.rs"]
+mod timing;
+use timing::{median_of, try_median_of};
 
 fn main() {
     if let Err(e) = run() {
@@ -91,31 +94,6 @@ fn run() -> anyhow::Result<()> {
         million()?;
     }
     Ok(())
-}
-
-/// Median of `n` (at least 1) timed runs of `f` (seconds), and the last result.
-fn median_of<T>(n: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    match try_median_of(n, || Ok::<T, std::convert::Infallible>(f())) {
-        Ok(timed) => timed,
-        Err(never) => match never {},
-    }
-}
-
-/// [`median_of`] for a fallible `f`: the first error ends the runs.
-fn try_median_of<T, E>(n: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<(f64, T), E> {
-    let mut times = Vec::with_capacity(n.max(1));
-    let mut timed = || {
-        let t = Instant::now();
-        let out = std::hint::black_box(f());
-        times.push(t.elapsed().as_secs_f64());
-        out
-    };
-    let mut last = timed()?;
-    for _ in 1..n {
-        last = timed()?;
-    }
-    times.sort_by(f64::total_cmp);
-    Ok((times[times.len() / 2], last))
 }
 
 fn energy() -> anyhow::Result<()> {

@@ -25,27 +25,8 @@ use std::time::Instant;
 mod common;
 #[path = "../tests/it/render_cases.rs"]
 mod render_cases;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// Median seconds of 3 runs and the last result.
-fn time<T>(mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut times = Vec::with_capacity(3);
-    let mut timed = || {
-        let t = Instant::now();
-        let out = f();
-        times.push(t.elapsed().as_secs_f64());
-        out
-    };
-    for _ in 0..2 {
-        std::hint::black_box(timed());
-    }
-    let out = timed();
-    (median(times), out)
-}
+#[path = "support/timing.rs"]
+mod timing;
 
 /// The material's lobes and its p(h) table at the export's default resolution.
 fn table_of(
@@ -132,13 +113,14 @@ fn run() -> anyhow::Result<()> {
     ];
     for (name, material, camera) in materials {
         let (lobes, table) = table_of(&material)?;
-        let (t_one, one) = time(|| material_fallback(&material, &lobes, &table));
+        let (t_one, one) = timing::median_of(3, || material_fallback(&material, &lobes, &table));
         let mesh = scene_for(&c, &camera, w, h);
         for scene in [None, Some(&mesh)] {
-            let (t_sets, objective) =
-                time(|| Objective::new(&table, material.rho_d, material.f0, scene));
-            let (t_gltf, gltf) = time(|| fit_gltf(&objective, &one.fallback));
-            let (t_usd, usd) = time(|| fit_preview(&objective, &gltf));
+            let (t_sets, objective) = timing::median_of(3, || {
+                Objective::new(&table, material.rho_d, material.f0, scene)
+            });
+            let (t_gltf, gltf) = timing::median_of(3, || fit_gltf(&objective, &one.fallback));
+            let (t_usd, usd) = timing::median_of(3, || fit_preview(&objective, &gltf));
             println!(
                 "{name}, {} weighting: one-lobe fit {t_one:.3} s, pairs {t_sets:.3} s, glTF {t_gltf:.3} s, USD {t_usd:.3} s; total {:.3} s",
                 objective.weighting().name(),

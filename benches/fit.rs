@@ -14,32 +14,20 @@ use glint::scene::Scene;
 use glint::sphere::{LobeLayout, LobeSet, srbf};
 use glint::transfer::{Transfer, TransferContext};
 use std::path::Path;
-use std::time::Instant;
 
 #[path = "../tests/it/common.rs"]
 mod common;
+#[path = "support/timing.rs"]
+mod timing;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// Median milliseconds of `n` runs of `f` ([`timing::time`]).
+fn time<T>(n: usize, f: impl FnMut() -> T) -> f64 {
+    timing::time(n, f) * 1e3
 }
 
-fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    match try_time(reps, || Ok::<T, std::convert::Infallible>(f())) {
-        Ok(secs) => secs,
-        Err(never) => match never {},
-    }
-}
-
-/// [`time`] for a fallible `f`: the first error ends the runs.
-fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
-    let mut times = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        let t = Instant::now();
-        std::hint::black_box(f()?);
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    Ok(median(times))
+/// [`time`] for a fallible `f`.
+fn try_time<T, E>(n: usize, f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
+    timing::try_time(n, f).map(|secs| secs * 1e3)
 }
 
 fn transfer_for(

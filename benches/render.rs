@@ -30,29 +30,9 @@ use std::time::Instant;
 
 #[path = "../tests/it/common.rs"]
 mod common;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> f64 {
-    match try_time(reps, || Ok::<T, std::convert::Infallible>(f())) {
-        Ok(secs) => secs,
-        Err(never) => match never {},
-    }
-}
-
-/// [`time`] for a fallible `f`: the first error ends the runs.
-fn try_time<T, E>(reps: usize, mut f: impl FnMut() -> Result<T, E>) -> Result<f64, E> {
-    let mut times = Vec::with_capacity(reps);
-    for _ in 0..reps {
-        let t = Instant::now();
-        std::hint::black_box(f()?);
-        times.push(t.elapsed().as_secs_f64());
-    }
-    Ok(median(times))
-}
+#[path = "support/timing.rs"]
+mod timing;
+use timing::{median, time, try_time};
 
 fn main() {
     if let Err(e) = run() {
