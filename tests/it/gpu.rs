@@ -240,28 +240,45 @@ fn vertices_past_one_row_of_workgroups_shade_as_in_one() {
     narrow.limits.max_compute_workgroups_per_dimension = 100;
     assert!(vertices > 500 && vertices < 600, "{vertices} vertices");
     let radiance = |ctx: &GpuContext| {
-        let mut gpu = GpuPreview::new(
+        lit_preview(
             ctx,
-            &scene.mesh,
-            &bake.cuts,
-            &baker.tree,
-            None,
+            &scene,
+            &baker,
+            &bake,
+            &env,
             PrtSettings::default(),
+            0.8,
         )
-        .unwrap();
-        gpu.set_light(
-            &LightSums::new(&env, &baker.set, &baker.tree, 0.0),
-            &baker.tree,
-        )
-        .unwrap();
-        gpu.set_material([0.8; 3], 0.04, None).unwrap();
-        gpu.vertex_radiance(scene.cameras[0].eye()).unwrap()
+        .vertex_radiance(scene.cameras[0].eye())
+        .unwrap()
     };
     let one_row = radiance(&ctx);
     let rows = radiance(&narrow);
     assert_eq!(one_row.len(), vertices);
     assert!(one_row.iter().flatten().any(|&c| c > 0.0));
     assert_eq!(rows, one_row);
+}
+
+/// The preview of `bake` under `env` (unrotated), with a diffuse albedo of `rho_d` in every channel
+/// (F0 0.04, no p(h) table).
+fn lit_preview(
+    ctx: &GpuContext,
+    scene: &glint::scene::Scene,
+    baker: &Baker,
+    bake: &glint::bake::Bake,
+    env: &glint::env::EnvMap,
+    settings: PrtSettings,
+    rho_d: f64,
+) -> GpuPreview {
+    let mut gpu =
+        GpuPreview::new(ctx, &scene.mesh, &bake.cuts, &baker.tree, None, settings).unwrap();
+    gpu.set_light(
+        &LightSums::new(env, &baker.set, &baker.tree, 0.0),
+        &baker.tree,
+    )
+    .unwrap();
+    gpu.set_material([rho_d; 3], 0.04, None).unwrap();
+    gpu
 }
 
 /// A white furnace on the GPU: ρd = 1 under a uniform environment of radiance 1 with no occluder
@@ -278,25 +295,13 @@ fn white_furnace_and_not_ready() {
     // lavapipe's loop budget makes nested loops 0.55 off), on the 64-per-side set.
     assert_eq!(baker.tree.leaf_count(), 6 * 64 * 64);
     for partition_deg in [2.0, 8.0, 32.0] {
-        let mut gpu = GpuPreview::new(
-            &ctx,
-            &scene.mesh,
-            &bake.cuts,
-            &baker.tree,
-            None,
-            PrtSettings {
-                partition_deg,
-                ..PrtSettings::default()
-            },
-        )
-        .unwrap();
-        gpu.set_light(
-            &LightSums::new(&env, &baker.set, &baker.tree, 0.0),
-            &baker.tree,
-        )
-        .unwrap();
-        gpu.set_material([1.0; 3], 0.04, None).unwrap();
-        let radiance = gpu.vertex_radiance(camera.eye()).unwrap();
+        let settings = PrtSettings {
+            partition_deg,
+            ..PrtSettings::default()
+        };
+        let radiance = lit_preview(&ctx, &scene, &baker, &bake, &env, settings, 1.0)
+            .vertex_radiance(camera.eye())
+            .unwrap();
         let worst = radiance
             .iter()
             .flatten()
