@@ -565,8 +565,8 @@ fn profile_frame() -> anyhow::Result<()> {
 }
 
 /// Study: PRT and transfer vs Monte Carlo with the bake's adaptive refinement at several
-/// thresholds, `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo test --test
-/// render refine_study -- --ignored --nocapture`.
+/// thresholds: `GLINT_REFINE=mesh:threshold:1/min_edge:rounds[:cell_deg],... cargo run --release
+/// --features studies --example render_studies -- refine_study`.
 fn refine_study() -> anyhow::Result<()> {
     const KEY: &str = "GLINT_REFINE";
     let spec: String = setting(KEY, "teapot:0.05:128:3")?;
