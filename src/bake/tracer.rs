@@ -12,8 +12,10 @@
 //!   (Ṽ = V·max(cos, 0)), and the vertex's own neighbourhood lies below its tangent plane wherever
 //!   the surface is locally convex.
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
-//!   visibility cells), traced in packets: Embree's `rtcOccluded16` (packets of 16, the last
-//!   one of 8 where at most 8 rays are left), or obvhs's BVH2 in packets of [`PACKET`], where a
+//!   visibility cells), traced together: through Embree as one stream (`rtcOccluded1M`, in a
+//!   scene of at least [`super::embree::STREAM_TRIANGLES`] triangles and a call of at least
+//!   [`super::embree::STREAM_MIN`] rays) or in packets (`rtcOccluded16`, the last one of 8 where
+//!   at most 8 rays are left), or through obvhs's BVH2 in packets of [`PACKET`], where a
 //!   node's bounds relative to the shared origin are computed once per packet and a node is
 //!   visited once for all the packet's rays that reach it. Rays of
 //!   neighbouring cells are nearly coherent, so a packet visits few more nodes than one of its
@@ -267,8 +269,9 @@ impl Tracer {
     }
 
     /// `out[i]` = whether the ray from `origin` along `dirs[i]` hits a triangle (t ≥ 0), as
-    /// [`Tracer::occluded`] answers it, traced in packets of [`PACKET`] consecutive rays: order
-    /// `dirs` so that neighbours point alike. `out` must be as long as `dirs`.
+    /// [`Tracer::occluded`] answers it, traced together (Embree's streams or packets, obvhs's
+    /// packets of [`PACKET`] consecutive rays; module docs): order `dirs` so that neighbours point
+    /// alike. `out` must be as long as `dirs`.
     pub fn occluded_from(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
         debug_assert_eq!(dirs.len(), out.len());
         if self.bvh2.nodes.is_empty() {
