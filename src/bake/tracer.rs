@@ -13,8 +13,8 @@
 //!   the surface is locally convex.
 //! - [`Tracer::occluded_from`]: the same any-hit answer for many rays from one origin (a vertex's
 //!   visibility cells), traced together: through Embree as one stream (`rtcOccluded1M`, in a
-//!   scene of at least [`super::embree::STREAM_TRIANGLES`] triangles and a call of at least
-//!   [`super::embree::STREAM_MIN`] rays) or in packets (`rtcOccluded16`, the last one of 8 where
+//!   scene of at least `embree::STREAM_TRIANGLES` triangles and a call of at least
+//!   `embree::STREAM_MIN` rays) or in packets (`rtcOccluded16`, the last one of 8 where
 //!   at most 8 rays are left), or through obvhs's BVH2 in packets of [`PACKET`], where a
 //!   node's bounds relative to the shared origin are computed once per packet and a node is
 //!   visited once for all the packet's rays that reach it. Rays of
@@ -298,7 +298,7 @@ impl Tracer {
     }
 
     /// [`Tracer::occluded_from`] with Embree's packets of 16 at any size of call (what every call
-    /// used before Embree's streams, [`super::embree::STREAM_MIN`]) where Embree traces, for the
+    /// used before Embree's streams, `embree::STREAM_MIN`) where Embree traces, for the
     /// benches' side by side; the same answers.
     pub fn occluded_from_packets(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
         #[cfg(embree)]
