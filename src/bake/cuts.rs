@@ -15,7 +15,7 @@
 //! 2. A node whose cone of directions is free ([`Tracer::cone_free`]) is visible, V = 1, exactly,
 //!    with no rays: this settles open sky wholesale. Tested above the nodes of rule 4, and inside
 //!    them on nodes of more than [`CutSettings::cone_leaves`] leaves where that is set. At the
-//!    root, an imported vertex takes decision (a)'s test of its hemisphere ([`Prior::root_free`]).
+//!    root, an imported vertex takes decision (a)'s test of its hemisphere ([`Prior::root_hemisphere`]).
 //! 3. A node so near the horizon that ½·Σ Ω_i c_i ≤ ε·Ω_k is accepted with V = ½ and no rays:
 //!    whatever its true visibility, the mean |Ṽ| error over it is within ε.
 //! 4. Otherwise a node with at most `trace_leaves` leaves has every above-horizon leaf traced;
@@ -259,8 +259,8 @@ struct Ctx<'a> {
     /// [`Prior::cell_ranges`] and [`Prior::agreed`].
     cell_ranges: &'a [(u32, u32)],
     agreed: &'a [[u64; 2]],
-    /// [`Prior::root_free`].
-    root_free: Option<bool>,
+    /// [`Prior::root_hemisphere`].
+    root_hemisphere: bool,
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -384,9 +384,10 @@ pub struct Prior<'a> {
     pub agreed: &'a [[u64; 2]],
     /// Fill [`VertexCut::cell_bits`].
     pub record: bool,
-    /// Whether nothing lies above the vertex's tangent plane, where known already (decision (a),
-    /// [`super::decisions::decide_occlusion`]): the root's cone test, not made again.
-    pub root_free: Option<bool>,
+    /// The root's cone test is decision (a)'s test of the vertex's hemisphere
+    /// ([`super::decisions::hemisphere_free`]), as for an imported vertex; otherwise the root's
+    /// cone is tested as any other node's.
+    pub root_hemisphere: bool,
 }
 
 impl Prior<'_> {
@@ -633,7 +634,7 @@ pub fn vertex_cut(
         memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
         cell_ranges: prior.cell_ranges,
         agreed: prior.agreed,
-        root_free: prior.root_free,
+        root_hemisphere: prior.root_hemisphere,
     };
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
@@ -854,12 +855,12 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             // The root's cone holds every leaf direction, so decision (a)'s test of the whole
             // hemisphere answers for it (a free hemisphere frees the root's cone; the converse can
             // fail only for geometry seen between the leaf directions, which then gets rays).
-            let f = match ctx.root_free.filter(|_| k == 0) {
-                Some(f) => {
-                    debug_assert!(!f || test(), "a free hemisphere with a blocked root cone");
-                    f
-                }
-                None => test(),
+            let f = if k == 0 && ctx.root_hemisphere {
+                let f = ctx.tracer.cone_free(ctx.apex, ctx.nf, ctx.nf, 0.0);
+                debug_assert!(!f || test(), "a free hemisphere with a blocked root cone");
+                f
+            } else {
+                test()
             };
             if f {
                 ctx.free.push(k as u32);

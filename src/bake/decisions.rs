@@ -3,7 +3,7 @@
 //! - (a) [`decide_occlusion`]: must visibility be traced at all? Exact test: for every vertex, is
 //!   the cone of all directions above its tangent plane free of geometry ([`Tracer::cone_free`])?
 //!   If so no ray from any vertex can hit the scene (a convex object), nothing is traced and Ṽ =
-//!   max(cos, 0).
+//!   max(cos, 0). The test stops at the first vertex that sees geometry.
 //! - (b) [`decide_frames`]: is there a tangent field for an anisotropic p(h)? glTF TANGENT, else
 //!   MikkTSpace tangents from TEXCOORD_0, else none — and then the fit must be isotropic.
 //! - (c) [`decide_resolution`]: how fine must the direction set be for this environment? Probe
@@ -152,35 +152,40 @@ impl Decisions {
     }
 }
 
-/// (a): (trace?, reason, per vertex whether its hemisphere is free).
+/// (a): (trace?, reason). The test stops at the first vertex (in the mesh's order) that sees
+/// geometry above its tangent plane: the other vertices' tests are made where their cuts need them
+/// ([`hemisphere_free`], [`super::cuts::Prior::root_hemisphere`]), and only at the vertices that
+/// are traced (on dragon_100k split twice, 350 K of 800 K).
 pub fn decide_occlusion(
     positions: &[DVec3],
     normals: &[DVec3],
     offset: f64,
     tracer: &Tracer,
-) -> (bool, String, Vec<bool>) {
-    let free: Vec<bool> = positions
+) -> (bool, String) {
+    let blocked = positions
         .par_iter()
         .zip(normals)
-        .map(|(p, n)| {
-            let apex: Vec3A = (*p + *n * offset).as_vec3().into();
-            let nf: Vec3A = n.as_vec3().into();
-            tracer.cone_free(apex, nf, nf, 0.0)
-        })
-        .collect();
-    let blocked = free.iter().filter(|&&f| !f).count();
-    let reason = if blocked == 0 {
-        format!(
+        .position_first(|(p, n)| !hemisphere_free(tracer, *p, *n, offset));
+    let reason = match blocked {
+        None => format!(
             "no vertex of {} sees geometry above its tangent plane (a convex object): no ray can hit the scene, visibility is the cosine alone",
             positions.len()
-        )
-    } else {
-        format!(
-            "{blocked} of {} vertices see geometry above their tangent plane: visibility is ray traced",
+        ),
+        Some(v) => format!(
+            "vertex {v} of {} sees geometry above its tangent plane (the first in the mesh's order): visibility is ray traced",
             positions.len()
-        )
+        ),
     };
-    (blocked > 0, reason, free)
+    (blocked.is_some(), reason)
+}
+
+/// Whether nothing lies above the tangent plane of the vertex at `position` with unit `normal`
+/// (the cone of all directions above it, from the ray origin `offset` along the normal): decision
+/// (a)'s test, which also answers a cut's first cone test, the root's.
+pub fn hemisphere_free(tracer: &Tracer, position: DVec3, normal: DVec3, offset: f64) -> bool {
+    let apex: Vec3A = (position + normal * offset).as_vec3().into();
+    let nf: Vec3A = normal.as_vec3().into();
+    tracer.cone_free(apex, nf, nf, 0.0)
 }
 
 /// (b): tangents for the shading frames, with the decision.
@@ -592,7 +597,7 @@ pub fn decide_cell(
                             cells: &[],
                             cell_ranges: &[],
                             agreed: &[],
-                            root_free: None,
+                            root_hemisphere: false,
                             record: false,
                         };
                         let made = vertex_cut(

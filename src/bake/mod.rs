@@ -204,9 +204,9 @@ pub struct Baker<'a> {
     cell_neighbours: cuts::CellNeighbours,
     /// The visibility cells, in leaf order ([`cuts::Prior::cells`]).
     cells: Vec<(u32, u32, u32)>,
-    /// Decision (a)'s answer per imported vertex: nothing above its tangent plane
-    /// ([`cuts::Prior::root_free`]).
-    hemisphere_free: Vec<bool>,
+    /// How many vertices the mesh had when imported: their cuts' root cone test is decision (a)'s
+    /// test of the hemisphere ([`cuts::Prior::root_hemisphere`]).
+    imported_vertices: usize,
     /// The range of `cells` under each tree node ([`cuts::Prior::cell_ranges`]).
     cell_ranges: Vec<(u32, u32)>,
     /// Vertex sampling (decision (f)): each vertex's neighbours and whether it is always traced;
@@ -250,6 +250,7 @@ impl<'a> Baker<'a> {
         // The environment split once (clamped base and excess samples) for every decision below.
         let source = crate::light::LightSource::new(env);
         let positions: Vec<DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+        let imported_vertices = positions.len();
         let normals: Vec<DVec3> = mesh
             .normals
             .iter()
@@ -279,7 +280,7 @@ impl<'a> Baker<'a> {
             },
         );
         let (resolution, resolution_reason, probe_errors, set, tree) = light?;
-        let (tracer, (needs_trace, mut trace_reason, hemisphere_free)) = geometry;
+        let (tracer, (needs_trace, mut trace_reason)) = geometry;
         let mut settings = settings;
         let trace_visibility = needs_trace || settings.force_trace;
         if settings.force_trace && !needs_trace {
@@ -423,7 +424,7 @@ impl<'a> Baker<'a> {
             cell_neighbours,
             cell_ranges,
             cells,
-            hemisphere_free,
+            imported_vertices,
             vertex_neighbours,
             sampled,
             levels,
@@ -540,17 +541,17 @@ impl<'a> Baker<'a> {
                 .map_init(
                     || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
                     |scratch, &i| {
-                        // Decision (a) tested each imported vertex's hemisphere already: its answer
-                        // is the cut's first cone test.
-                        let root_free = ids
+                        // An imported vertex's first cone test is decision (a)'s test of its
+                        // hemisphere.
+                        let root_hemisphere = ids
                             .and_then(|ids| ids.get(i as usize))
-                            .and_then(|&v| self.hemisphere_free.get(v as usize).copied());
+                            .is_some_and(|&v| (v as usize) < self.imported_vertices);
                         let cut = self.point_cut(
                             points[i as usize],
                             i as usize,
                             agreed,
                             record,
-                            root_free,
+                            root_hemisphere,
                             scratch,
                         );
                         let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -574,7 +575,7 @@ impl<'a> Baker<'a> {
         i: usize,
         agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
-        root_free: Option<bool>,
+        root_hemisphere: bool,
         scratch: &mut CutScratch,
     ) -> VertexCut {
         if !self.decisions.trace_visibility {
@@ -596,7 +597,7 @@ impl<'a> Baker<'a> {
             cell_ranges: &self.cell_ranges,
             agreed: &known,
             record,
-            root_free,
+            root_hemisphere,
         };
         cuts::vertex_cut(
             p,
