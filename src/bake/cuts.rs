@@ -52,6 +52,12 @@
 //!    cone is not free); where they are all given alike and the node lies wholly above the
 //!    horizon, it enters the cut as it stands (what merging its cells gives). Everything else is
 //!    as above.
+//! 9. Vertices may be cut in groups ([`plan_first_pass`], [`GroupRays`]; [`crate::bake::Baker`]
+//!    groups 16 neighbours where Embree streams): each one's first pass is planned before it is
+//!    traced — the descent of rules 1–4 with its cone tests, down to the nodes whose cells it
+//!    traces, collecting their rays — and the group's rays go to the tracer in one call; each cut
+//!    then takes them as traced. What the first pass traces and tests depends on no ray's answer,
+//!    so the cut is the same as cutting the vertex alone.
 //!
 //! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon
 //! leaf lies in exactly one; values are in [0, 1]; the result does not depend on the thread that
@@ -224,6 +230,18 @@ impl CutScratch {
             self.memo_stamp.iter_mut().for_each(|s| *s = 0);
             self.generation = 1;
         }
+        self.clear_lists();
+    }
+
+    /// Takes up a vertex planned earlier ([`plan_first_pass`]) under its generation: what its plan
+    /// stamped and no later vertex overwrote is still its own (the cosine masses above all). Every
+    /// check is for equality with the generation, so going back to an older one is safe.
+    fn resume_vertex(&mut self, generation: u32) {
+        self.generation = generation;
+        self.clear_lists();
+    }
+
+    fn clear_lists(&mut self) {
         self.traced.clear();
         self.arena.clear();
         self.recorded.clear();
@@ -261,6 +279,12 @@ struct Ctx<'a> {
     agreed: &'a [[u64; 2]],
     /// [`Prior::root_hemisphere`].
     root_hemisphere: bool,
+    /// The first pass is being planned ([`plan_first_pass`]): its cells are collected here, not
+    /// traced, and the descent stops where they would be traced.
+    plan: Option<Batch>,
+    /// The first pass was planned and traced ahead ([`Planned`]): its cells are set and its cone
+    /// answers are in `free`.
+    planned: bool,
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -580,62 +604,35 @@ pub fn vertex_cut(
     scratch: &mut CutScratch,
     prior: Prior,
     gate: Option<LightGate>,
+    planned: Option<(Planned, &GroupRays)>,
 ) -> VertexCut {
-    scratch.next_vertex();
-    if scratch.weight_stamp.len() < tree.nodes().len() {
-        scratch.weight.resize(tree.nodes().len(), 0.0);
-        scratch.weight_stamp.resize(tree.nodes().len(), 0);
-    }
-    if settings.boundary_levels > 0
-        && !settings.rebuild_whole_passes
-        && scratch.memo_stamp.len() < tree.nodes().len()
-    {
-        scratch.memo.resize(tree.nodes().len(), Memo::default());
-        scratch.memo_stamp.resize(tree.nodes().len(), 0);
-    }
-    for (w, &[known, visible]) in prior.agreed.iter().enumerate() {
-        let mut rest = known;
-        while rest != 0 {
-            let i = w * 64 + rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-            let Some(&(k, first, _)) = prior.cells.get(i) else {
-                break;
-            };
-            // A top-level cell's scratch key is its first leaf ([`Ctx::key`]).
-            scratch.stamp[first as usize] = scratch.generation;
-            scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
-            if settings.boundary_levels > 0 {
-                // Taken as traced, so that a shadow edge beside it is refined (with rays).
-                scratch
-                    .traced
-                    .push((k, settings.cell_leaves.max(1) as u32, first));
+    let resume = planned.as_ref().map(|(p, _)| p.generation);
+    let mut ctx = start_vertex(
+        position, normal, offset, tree, tracer, settings, scratch, prior, resume,
+    );
+    if let Some((planned, rays)) = planned {
+        // The first pass's rays, traced ahead with other vertices': as `trace_batch` caches them.
+        let s = &mut *ctx.scratch;
+        let range = planned.rays.0 as usize..planned.rays.1 as usize;
+        let cells = rays.cells[range.clone()].iter();
+        let answers = rays.occluded[range.clone()]
+            .iter()
+            .zip(&rays.weights[range.clone()]);
+        for (&(k, cell, key), (&occluded, &w)) in cells.zip(answers) {
+            if ctx.boundary_levels > 0 {
+                s.traced.push((k, cell, key));
+            }
+            s.stamp[key as usize] = s.generation;
+            s.visible[key as usize] = !occluded;
+            if !w.is_nan() {
+                s.weight[k as usize] = w;
+                s.weight_stamp[k as usize] = s.generation;
             }
         }
+        ctx.rays = range.len() as u64;
+        ctx.free = planned.free;
+        ctx.planned = true;
     }
-    let apex = position + normal * offset;
-    let mut ctx = Ctx {
-        tree,
-        tracer,
-        apex: apex.as_vec3().into(),
-        n: normal,
-        nf: normal.as_vec3().into(),
-        trace_leaves: settings.trace_leaves.max(settings.cell_leaves).max(1),
-        cone_leaves: settings.cone_leaves,
-        batched_end: 0,
-        cell_leaves: settings.cell_leaves.max(1),
-        boundary_levels: settings.boundary_levels,
-        budget: settings.boundary_budget.max(0.0),
-        epsilon: settings.epsilon.max(0.0),
-        guess_epsilon: settings.epsilon.max(0.0),
-        scratch,
-        rays: 0,
-        free: Vec::new(),
-        redo: false,
-        memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
-        cell_ranges: prior.cell_ranges,
-        agreed: prior.agreed,
-        root_hemisphere: prior.root_hemisphere,
-    };
     let mut entries = Vec::new();
     let top = ctx.cell_leaves;
     build(&mut ctx, 0, false, top, &mut entries);
@@ -697,6 +694,169 @@ pub fn vertex_cut(
         epsilon_used: ctx.epsilon,
         interpolated: false,
         cell_bits,
+    }
+}
+
+/// A vertex's first pass, planned ([`plan_first_pass`]): its rays, found before they are traced
+/// so that the rays of many vertices go to the tracer in one call ([`GroupRays`]), and its cone
+/// answers, for [`vertex_cut`] to take instead of tracing and testing again. The cut is the same as
+/// without: which cells the first pass traces and which cones it tests does not depend on any
+/// ray's answer.
+#[derive(Debug, Clone, Default)]
+pub struct Planned {
+    /// The scratch's generation while planning, taken up again by [`vertex_cut`].
+    generation: u32,
+    /// The vertex's rays in its [`GroupRays`]: [start, end).
+    rays: (u32, u32),
+    /// The nodes whose cone the first pass found free, sorted.
+    free: Vec<u32>,
+}
+
+/// The first-pass rays of a group of neighbouring vertices ([`plan_first_pass`]), traced in one
+/// call ([`Tracer::occluded_each`]).
+#[derive(Debug, Clone, Default)]
+pub struct GroupRays {
+    /// (node, cell size, scratch key) of each ray's cell.
+    cells: Vec<(u32, u32, u32)>,
+    /// Each cell's cosine mass, as planning found it (NaN where not known): the scratch's cache
+    /// of them does not outlive the other vertices of the group.
+    weights: Vec<f64>,
+    origins: Vec<Vec3A>,
+    dirs: Vec<Vec3A>,
+    occluded: Vec<bool>,
+}
+
+impl GroupRays {
+    /// Empties it for the next group (keeping its allocations).
+    pub fn clear(&mut self) {
+        self.cells.clear();
+        self.weights.clear();
+        self.origins.clear();
+        self.dirs.clear();
+        self.occluded.clear();
+    }
+
+    /// Traces every ray planned into it.
+    pub fn trace(&mut self, tracer: &Tracer) {
+        self.occluded.clear();
+        self.occluded.resize(self.dirs.len(), false);
+        tracer.occluded_each(&self.origins, &self.dirs, &mut self.occluded);
+    }
+}
+
+/// The rays of [`vertex_cut`]'s first pass at this vertex, appended to `rays` untraced: the cut's
+/// descent down to where it traces a node's cells, collecting them (`collect_cells`) instead, with
+/// its cone tests (kept in the [`Planned`]). Plan a group's vertices with one scratch, trace
+/// `rays` ([`GroupRays::trace`]), then cut each vertex with its plan and the same scratch, in the
+/// order they were planned (each takes up its planning generation, and a later one's marks must
+/// not precede it). The other arguments are `vertex_cut`'s.
+#[allow(clippy::too_many_arguments)]
+pub fn plan_first_pass(
+    position: DVec3,
+    normal: DVec3,
+    offset: f64,
+    tree: &LightTree,
+    tracer: &Tracer,
+    settings: &CutSettings,
+    scratch: &mut CutScratch,
+    prior: Prior,
+    rays: &mut GroupRays,
+) -> Planned {
+    let mut ctx = start_vertex(
+        position, normal, offset, tree, tracer, settings, scratch, prior, None,
+    );
+    ctx.plan = Some(take_batch(&mut ctx));
+    let top = ctx.cell_leaves;
+    build(&mut ctx, 0, false, top, &mut Vec::new());
+    let batch = ctx.plan.take().unwrap_or_default();
+    let start = rays.cells.len() as u32;
+    rays.cells.extend_from_slice(&batch.cells);
+    rays.weights.extend_from_slice(&batch.weights);
+    rays.dirs.extend_from_slice(&batch.dirs);
+    rays.origins
+        .extend(std::iter::repeat_n(ctx.apex, batch.dirs.len()));
+    let planned = Planned {
+        generation: ctx.scratch.generation,
+        rays: (start, rays.cells.len() as u32),
+        free: std::mem::take(&mut ctx.free),
+    };
+    ctx.scratch.batch = batch;
+    planned
+}
+
+/// A vertex's context with its scratch readied (a new generation, or `resume`'s): the cells taken
+/// from the neighbours set.
+#[allow(clippy::too_many_arguments)]
+fn start_vertex<'a>(
+    position: DVec3,
+    normal: DVec3,
+    offset: f64,
+    tree: &'a LightTree,
+    tracer: &'a Tracer,
+    settings: &CutSettings,
+    scratch: &'a mut CutScratch,
+    prior: Prior<'a>,
+    resume: Option<u32>,
+) -> Ctx<'a> {
+    match resume {
+        Some(generation) => scratch.resume_vertex(generation),
+        None => scratch.next_vertex(),
+    }
+    if scratch.weight_stamp.len() < tree.nodes().len() {
+        scratch.weight.resize(tree.nodes().len(), 0.0);
+        scratch.weight_stamp.resize(tree.nodes().len(), 0);
+    }
+    if settings.boundary_levels > 0
+        && !settings.rebuild_whole_passes
+        && scratch.memo_stamp.len() < tree.nodes().len()
+    {
+        scratch.memo.resize(tree.nodes().len(), Memo::default());
+        scratch.memo_stamp.resize(tree.nodes().len(), 0);
+    }
+    for (w, &[known, visible]) in prior.agreed.iter().enumerate() {
+        let mut rest = known;
+        while rest != 0 {
+            let i = w * 64 + rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let Some(&(k, first, _)) = prior.cells.get(i) else {
+                break;
+            };
+            // A top-level cell's scratch key is its first leaf ([`Ctx::key`]).
+            scratch.stamp[first as usize] = scratch.generation;
+            scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
+            if settings.boundary_levels > 0 {
+                // Taken as traced, so that a shadow edge beside it is refined (with rays).
+                scratch
+                    .traced
+                    .push((k, settings.cell_leaves.max(1) as u32, first));
+            }
+        }
+    }
+    let apex = position + normal * offset;
+    Ctx {
+        tree,
+        tracer,
+        apex: apex.as_vec3().into(),
+        n: normal,
+        nf: normal.as_vec3().into(),
+        trace_leaves: settings.trace_leaves.max(settings.cell_leaves).max(1),
+        cone_leaves: settings.cone_leaves,
+        batched_end: 0,
+        cell_leaves: settings.cell_leaves.max(1),
+        boundary_levels: settings.boundary_levels,
+        budget: settings.boundary_budget.max(0.0),
+        epsilon: settings.epsilon.max(0.0),
+        guess_epsilon: settings.epsilon.max(0.0),
+        scratch,
+        rays: 0,
+        free: Vec::new(),
+        redo: false,
+        memo: settings.boundary_levels > 0 && !settings.rebuild_whole_passes,
+        cell_ranges: prior.cell_ranges,
+        agreed: prior.agreed,
+        root_hemisphere: prior.root_hemisphere,
+        plan: None,
+        planned: false,
     }
 }
 
@@ -841,7 +1001,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     let cone = agreed == Agreed::Partly
         && (!known || (ctx.cone_leaves > 0 && node.count as usize > ctx.cone_leaves));
     if cone {
-        let free = if ctx.redo {
+        let free = if ctx.redo || ctx.planned {
             ctx.free.binary_search(&(k as u32)).is_ok()
         } else {
             let test = || {
@@ -905,7 +1065,15 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         known_below && !known
     };
     if batch && !ctx.redo && !matches!(agreed, Agreed::All(_)) {
-        trace_cells(ctx, k, cell);
+        if let Some(mut plan) = ctx.plan.take() {
+            // Planning the first pass: these are its rays, and nothing below depends on them.
+            collect_cells(ctx, k, cell, &mut plan);
+            ctx.plan = Some(plan);
+            return (0.0, 0.0, 0.0);
+        }
+        if !ctx.planned {
+            trace_cells(ctx, k, cell);
+        }
         ctx.batched_end = node.first + node.count;
     }
     let known = known_below;
@@ -965,6 +1133,7 @@ fn take_batch(ctx: &mut Ctx) -> Batch {
     let mut batch = std::mem::take(&mut ctx.scratch.batch);
     batch.cells.clear();
     batch.dirs.clear();
+    batch.weights.clear();
     batch
 }
 
@@ -974,6 +1143,8 @@ fn take_batch(ctx: &mut Ctx) -> Batch {
 struct Batch {
     cells: Vec<(u32, u32, u32)>,
     dirs: Vec<Vec3A>,
+    /// Each cell's cosine mass ([`node_weight`]; NaN where not known).
+    weights: Vec<f64>,
     occluded: Vec<bool>,
 }
 
@@ -1061,6 +1232,7 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
         if w > 0.0 && ctx.scratch.stamp[key] != ctx.scratch.generation {
             out.cells.push((k as u32, cell as u32, key as u32));
             out.dirs.push(node.mean_direction.as_vec3().into());
+            out.weights.push(w);
         }
         return;
     }
@@ -1134,10 +1306,18 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
     if s.stamp[key] == s.generation {
         return s.visible[key];
     }
+    let d = node.mean_direction;
+    if let Some(plan) = &mut ctx.plan {
+        // Planning the first pass: a ray to trace (its answer is not needed yet).
+        plan.cells.push((k as u32, cell as u32, key as u32));
+        plan.dirs.push(d.as_vec3().into());
+        plan.weights.push(f64::NAN);
+        s.stamp[key] = s.generation;
+        return true;
+    }
     if ctx.boundary_levels > 0 {
         s.traced.push((k as u32, cell as u32, key as u32));
     }
-    let d = node.mean_direction;
     let visible = !ctx.tracer.occluded(ctx.apex, d.as_vec3().into());
     ctx.rays += 1;
     s.stamp[key] = s.generation;

@@ -611,6 +611,7 @@ pub fn decide_cell(
                             scratch,
                             prior,
                             Some(ring.gate(normal)),
+                            None,
                         );
                         cut_irradiance(tree, made.entries.iter().copied(), &luminance, normal)
                     })

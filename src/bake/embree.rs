@@ -8,7 +8,7 @@
 //! one origin: in a large scene ([`STREAM_TRIANGLES`]) from [`STREAM_MIN`] rays on as one stream
 //! (`rtcOccluded1M`, incoherent: Embree sorts the stream's rays by octant and traverses them
 //! together), else in packets of 16 (`rtcOccluded16`; a last one of at most 8 rays as
-//! `rtcOccluded8`).
+//! `rtcOccluded8`); [`EmbreeTracer::occluded_each`], rays from many origins as one stream.
 //!
 //! The binding is the few C entry points it needs, declared here against Embree 3.13's headers
 //! (`/usr/include/embree3`; `build.rs` checks their configuration); nothing else of Embree is
@@ -269,6 +269,23 @@ impl EmbreeTracer {
     /// rays at once (its stream traversal); with the coherent hint it would cut the stream into
     /// packets in order, as [`EmbreeTracer::occluded_from_packets`] does.
     pub fn occluded_stream(&self, origin: Vec3A, dirs: &[Vec3A], out: &mut [bool]) {
+        self.stream_of(dirs.iter().map(|d| (origin, *d)), out);
+    }
+
+    /// `out[i]` = [`EmbreeTracer::occluded`] of the ray from `origins[i]` along `dirs[i]`, as
+    /// one stream ([`EmbreeTracer::occluded_stream`]): for the rays of many neighbouring points,
+    /// which Embree sorts by octant and traverses together.
+    pub fn occluded_each(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
+        self.stream_of(origins.iter().copied().zip(dirs.iter().copied()), out);
+    }
+
+    /// Whether this scene is large enough for streams ([`STREAM_TRIANGLES`]).
+    pub fn streams(&self) -> bool {
+        self.stream
+    }
+
+    /// The rays (origin, direction) as one stream of single rays (`rtcOccluded1M`, incoherent).
+    fn stream_of(&self, rays_in: impl Iterator<Item = (Vec3A, Vec3A)>, out: &mut [bool]) {
         let mut context = RtcIntersectContext {
             flags: CONTEXT_INCOHERENT,
             filter: std::ptr::null(),
@@ -276,7 +293,7 @@ impl EmbreeTracer {
         };
         STREAM.with_borrow_mut(|rays| {
             rays.clear();
-            rays.extend(dirs.iter().map(|d| RtcRay {
+            rays.extend(rays_in.map(|(origin, d)| RtcRay {
                 org: origin.to_array(),
                 tnear: 0.0,
                 dir: d.to_array(),

@@ -87,6 +87,10 @@ const CELL_AREA_PROBES: usize = decisions::CELL_PROBES / 2;
 /// (~8 MiB of them), and its end costs the threads one wait.
 const BATCH: usize = 1 << 14;
 
+/// Points whose first passes' rays go to the tracer in one call where it groups points
+/// ([`Tracer::groups_points`]): consecutive in Morton order, so neighbours.
+const GROUP: usize = 16;
+
 /// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of
 /// their positions, ties and `None`s in index order (the `None`s last).
 fn morton_order(points: &[Option<(DVec3, DVec3)>]) -> Vec<u32> {
@@ -191,6 +195,10 @@ pub struct Baker<'a> {
     pub set: DirectionSet,
     pub tree: LightTree,
     pub tracer: Tracer,
+    /// Whether the first passes of neighbouring vertices are planned and their rays traced in one
+    /// call per 16 ([`cuts::plan_first_pass`]); the same cuts either way. Set where the
+    /// tracer groups points ([`Tracer::groups_points`]); tests set it both ways.
+    pub group_points: bool,
     /// Tangents for the shading frames (decision (b)).
     pub tangents: Option<Vec<Vec4>>,
     positions: Vec<DVec3>,
@@ -414,6 +422,7 @@ impl<'a> Baker<'a> {
             decisions,
             set,
             tree,
+            group_points: tracer.groups_points(),
             tracer,
             tangents,
             positions,
@@ -535,47 +544,111 @@ impl<'a> Baker<'a> {
         // only. Batches of that order are stored as they finish: only a batch's cuts are ever
         // unpacked at once.
         let order = morton_order(points);
+        // An imported vertex's first cone test is decision (a)'s test of its hemisphere.
+        let root_hemisphere = |i: u32| {
+            ids.and_then(|ids| ids.get(i as usize))
+                .is_some_and(|&v| (v as usize) < self.imported_vertices)
+        };
+        let tick = || {
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            if n.is_multiple_of(256) || n == points.len() {
+                progress(n);
+            }
+        };
+        let grouped = self.decisions.trace_visibility && self.group_points;
         for batch in order.chunks(BATCH) {
-            let cuts: Vec<VertexCut> = batch
-                .par_iter()
-                .map_init(
-                    || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels),
-                    |scratch, &i| {
-                        // An imported vertex's first cone test is decision (a)'s test of its
-                        // hemisphere.
-                        let root_hemisphere = ids
-                            .and_then(|ids| ids.get(i as usize))
-                            .is_some_and(|&v| (v as usize) < self.imported_vertices);
-                        let cut = self.point_cut(
-                            points[i as usize],
-                            i as usize,
-                            agreed,
+            let scratch =
+                || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels);
+            let cuts: Vec<VertexCut> = if grouped {
+                // Consecutive points in Morton order are neighbours: their first passes' rays go
+                // to the tracer together (`Tracer::groups_points`).
+                let groups: Vec<Vec<VertexCut>> = batch
+                    .par_chunks(GROUP)
+                    .map_init(
+                        || (scratch(), cuts::GroupRays::default()),
+                        |(scratch, rays), group| {
+                            let known: Vec<Vec<[u64; 2]>> = group
+                                .iter()
+                                .map(|&i| agreed.map(|f| f(i as usize)).unwrap_or_default())
+                                .collect();
+                            let prior = |j: usize| cuts::Prior {
+                                cells: &self.cells,
+                                cell_ranges: &self.cell_ranges,
+                                agreed: &known[j],
+                                record,
+                                root_hemisphere: root_hemisphere(group[j]),
+                            };
+                            rays.clear();
+                            let plans: Vec<Option<cuts::Planned>> = group
+                                .iter()
+                                .enumerate()
+                                .map(|(j, &i)| {
+                                    let (p, n) = points[i as usize]?;
+                                    Some(cuts::plan_first_pass(
+                                        p,
+                                        n,
+                                        self.offset,
+                                        &self.tree,
+                                        &self.tracer,
+                                        &self.settings.cut,
+                                        scratch,
+                                        prior(j),
+                                        rays,
+                                    ))
+                                })
+                                .collect();
+                            rays.trace(&self.tracer);
+                            let rays = &*rays;
+                            group
+                                .iter()
+                                .zip(plans)
+                                .enumerate()
+                                .map(|(j, (&i, plan))| {
+                                    let cut = self.point_cut(
+                                        points[i as usize],
+                                        prior(j),
+                                        plan.map(|p| (p, rays)),
+                                        scratch,
+                                    );
+                                    tick();
+                                    cut
+                                })
+                                .collect()
+                        },
+                    )
+                    .collect();
+                groups.into_iter().flatten().collect()
+            } else {
+                batch
+                    .par_iter()
+                    .map_init(scratch, |scratch, &i| {
+                        let known = agreed.map(|f| f(i as usize)).unwrap_or_default();
+                        let prior = cuts::Prior {
+                            cells: &self.cells,
+                            cell_ranges: &self.cell_ranges,
+                            agreed: &known,
                             record,
-                            root_hemisphere,
-                            scratch,
-                        );
-                        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                        if n.is_multiple_of(256) || n == points.len() {
-                            progress(n);
-                        }
+                            root_hemisphere: root_hemisphere(i),
+                        };
+                        let cut = self.point_cut(points[i as usize], prior, None, scratch);
+                        tick();
                         cut
-                    },
-                )
-                .collect();
+                    })
+                    .collect()
+            };
             for (&i, cut) in batch.iter().zip(cuts) {
                 store(i as usize, cut);
             }
         }
     }
 
-    /// The cut at one point of [`Baker::bake_points`] (index `i`).
+    /// The cut at one point of [`Baker::bake_points`], with what it takes from its neighbours and,
+    /// where its first pass was traced ahead, that pass's rays.
     fn point_cut(
         &self,
         point: Option<(DVec3, DVec3)>,
-        i: usize,
-        agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
-        record: bool,
-        root_hemisphere: bool,
+        prior: cuts::Prior,
+        planned: Option<(cuts::Planned, &cuts::GroupRays)>,
         scratch: &mut CutScratch,
     ) -> VertexCut {
         if !self.decisions.trace_visibility {
@@ -591,14 +664,6 @@ impl<'a> Baker<'a> {
         let Some((p, n)) = point else {
             return VertexCut::default();
         };
-        let known = agreed.map(|f| f(i)).unwrap_or_default();
-        let prior = cuts::Prior {
-            cells: &self.cells,
-            cell_ranges: &self.cell_ranges,
-            agreed: &known,
-            record,
-            root_hemisphere,
-        };
         cuts::vertex_cut(
             p,
             n,
@@ -610,6 +675,7 @@ impl<'a> Baker<'a> {
             scratch,
             prior,
             Some(self.ring.gate(n)),
+            planned,
         )
     }
 
