@@ -367,9 +367,7 @@ impl Tracer {
             e.occluded_each(origins, dirs, out);
             return;
         }
-        for ((p, d), o) in origins.iter().zip(dirs).zip(out.iter_mut()) {
-            *o = self.occluded(*p, *d);
-        }
+        self.occluded_one_by_one(origins, dirs, out);
     }
 
     /// `out[i]` = [`Tracer::occluded`] of the ray from `origins[i]` along `dirs[i]`: Embree's
@@ -382,6 +380,11 @@ impl Tracer {
             e.occluded_rays(origins, dirs, out);
             return;
         }
+        self.occluded_one_by_one(origins, dirs, out);
+    }
+
+    /// [`Tracer::occluded_each`] one ray at a time: where Embree does not trace.
+    fn occluded_one_by_one(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
         for ((p, d), o) in origins.iter().zip(dirs).zip(out.iter_mut()) {
             *o = self.occluded(*p, *d);
         }
