@@ -527,8 +527,7 @@ fn mark_boundaries(
             scratch.refine[own] = generation;
             marked += 1;
             if let Some(g) = gate.filter(|_| budget > 0.0) {
-                let end = tree.leaf_count() as u32;
-                let w = super::refine::hemisphere_weight(tree, g.prefix, k, 0, end, n);
+                let w = cell_gate(tree, g.prefix, k, n);
                 scratch.gated.push((w, own));
             }
         }
@@ -560,6 +559,29 @@ fn mark_boundaries(
     }
     scratch.marked.sort_unstable();
     marked > 0
+}
+
+/// The light cell `k` gates ([`LightGate`]): [`super::refine::hemisphere_weight`] over the cell,
+/// Σ max(r Ω d·n, 0) over its leaves, summed leaf by leaf where the horizon crosses it (a shadow
+/// edge along the horizon is common, and descending the cell's subtree loads a node for each of
+/// its ~2× as many nodes, where the leaves' prefix sums lie together).
+fn cell_gate(tree: &LightTree, prefix: &[DVec3], k: u32, n: DVec3) -> f64 {
+    let node = &tree.nodes()[k as usize];
+    if prefix.len() <= tree.leaf_count() || node.is_leaf() || node.count as usize > LEAF_SUM_MAX {
+        return super::refine::hemisphere_weight(tree, prefix, k, 0, tree.leaf_count() as u32, n);
+    }
+    let (max_cos, wholly_above) = node.horizon(n);
+    let (first, end) = (node.first as usize, (node.first + node.count) as usize);
+    if max_cos <= 0.0 {
+        0.0
+    } else if wholly_above {
+        (prefix[end] - prefix[first]).dot(n).max(0.0)
+    } else {
+        prefix[first..=end]
+            .windows(2)
+            .map(|p| (p[1] - p[0]).dot(n).max(0.0))
+            .sum()
+    }
 }
 
 /// Whether a cell marked by the last [`mark_boundaries`] meets the leaves [first, end).
@@ -1332,6 +1354,52 @@ mod tests {
     /// The cosine mass of nodes above [`LEAF_SUM_MAX`] leaves, split by the children's cones,
     /// against the sum over every leaf (the definition): the same up to rounding, for the root and
     /// random nodes under random normals, at 64 directions a side (root 24,576 leaves).
+    /// The light a cell gates, summed leaf by leaf where the horizon crosses it, against the
+    /// descent of `hemisphere_weight` (each wholly-above subtree by its prefix sums): the same up
+    /// to rounding, for the cells of every refinable size under random normals and weights, many
+    /// of them crossed by the horizon.
+    #[test]
+    fn a_cell_gates_what_the_hemisphere_weight_gives() {
+        let tree = LightTree::build(&DirectionSet::cube(32).unwrap());
+        let mut rng = crate::math::Rng::new(11);
+        let mut prefix = vec![DVec3::ZERO];
+        for (d, &omega) in tree.leaf_directions().iter().zip(tree.leaf_solid_angles()) {
+            let last = prefix[prefix.len() - 1];
+            prefix.push(last + *d * omega * (0.1 + 10.0 * rng.next_f64()));
+        }
+        let mut crossed = 0;
+        for size in [64u32, 16, 4] {
+            let cells = crate::bake::decisions::nodes_of_at_most(&tree, size, 0);
+            for trial in 0..200 {
+                let k = cells[(rng.next_u64() % cells.len() as u64) as usize];
+                // Every other normal points at the cell's edge: the horizon crosses it.
+                let n = if trial % 2 == 0 {
+                    let d = tree.nodes()[k].mean_direction;
+                    let t = rng.unit_vector().cross(d).normalize();
+                    (t + d * 0.05 * (rng.next_f64() - 0.5)).normalize()
+                } else {
+                    rng.unit_vector()
+                };
+                let want = crate::bake::refine::hemisphere_weight(
+                    &tree,
+                    &prefix,
+                    k as u32,
+                    0,
+                    tree.leaf_count() as u32,
+                    n,
+                );
+                let got = cell_gate(&tree, &prefix, k as u32, n);
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1e-9),
+                    "cell {k} ({size} leaves), n {n:?}: {got} against {want}"
+                );
+                let (max_cos, wholly_above) = tree.nodes()[k].horizon(n);
+                crossed += (max_cos > 0.0 && !wholly_above && want > 0.0) as usize;
+            }
+        }
+        assert!(crossed >= 150, "{crossed} cells crossed by the horizon");
+    }
+
     #[test]
     fn split_cosine_mass_is_the_leaf_sum() {
         let tree = LightTree::build(&DirectionSet::cube(64).unwrap());
