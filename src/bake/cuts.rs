@@ -1351,9 +1351,6 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
 mod tests {
     use super::*;
 
-    /// The cosine mass of nodes above [`LEAF_SUM_MAX`] leaves, split by the children's cones,
-    /// against the sum over every leaf (the definition): the same up to rounding, for the root and
-    /// random nodes under random normals, at 64 directions a side (root 24,576 leaves).
     /// The light a cell gates, summed leaf by leaf where the horizon crosses it, against the
     /// descent of `hemisphere_weight` (each wholly-above subtree by its prefix sums): the same up
     /// to rounding, for the cells of every refinable size under random normals and weights, many
@@ -1400,6 +1397,9 @@ mod tests {
         assert!(crossed >= 150, "{crossed} cells crossed by the horizon");
     }
 
+    /// The cosine mass of nodes above [`LEAF_SUM_MAX`] leaves, split by the children's cones,
+    /// against the sum over every leaf (the definition): the same up to rounding, for the root and
+    /// random nodes under random normals, at 64 directions a side (root 24,576 leaves).
     #[test]
     fn split_cosine_mass_is_the_leaf_sum() {
         let tree = LightTree::build(&DirectionSet::cube(64).unwrap());
