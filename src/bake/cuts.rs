@@ -570,9 +570,9 @@ fn cell_gate(tree: &LightTree, prefix: &[DVec3], k: u32, n: DVec3) -> f64 {
     if prefix.len() <= tree.leaf_count() || node.is_leaf() || node.count as usize > LEAF_SUM_MAX {
         return super::refine::hemisphere_weight(tree, prefix, k, 0, tree.leaf_count() as u32, n);
     }
-    let (max_cos, wholly_above) = node.horizon(n);
+    let (up, wholly_above) = node.above(n);
     let (first, end) = (node.first as usize, (node.first + node.count) as usize);
-    if max_cos <= 0.0 {
+    if !up {
         0.0
     } else if wholly_above {
         (prefix[end] - prefix[first]).dot(n).max(0.0)
@@ -902,8 +902,8 @@ impl Ctx<'_> {
 fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
     let node = &tree.nodes()[k];
     if node.count as usize > LEAF_SUM_MAX && !node.is_leaf() {
-        let (max_cos, wholly_above) = node.horizon(n);
-        return if max_cos <= 0.0 {
+        let (up, wholly_above) = node.above(n);
+        return if !up {
             0.0
         } else if wholly_above {
             node.moment.dot(n)
@@ -952,8 +952,8 @@ fn cell_size(ctx: &Ctx, node: &crate::sphere::TreeNode, cell: usize) -> usize {
 /// per boundary refinement.
 fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, f32)>) -> Sums {
     let node = ctx.tree.nodes()[k];
-    let (max_cos, wholly_above) = node.horizon(ctx.n);
-    if max_cos <= 0.0 {
+    let (up, wholly_above) = node.above(ctx.n);
+    if !up {
         return (0.0, 0.0, 0.0);
     }
     // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a
@@ -1061,7 +1061,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     // (With the settings' ε, not the one the cap relaxed: a relaxed ε of 0.13 would accept the
     // whole sphere with V = ½, its error bound diluted by the half below the horizon. The cap
     // coarsens by merging, which keeps each node's cosine-weighted mean.)
-    if !known && 0.5 * max_cos <= 4.0 * ctx.guess_epsilon {
+    if !known && 0.5 * node.horizon(ctx.n).0 <= 4.0 * ctx.guess_epsilon {
         // A node so close to the horizon that even a blind guess V = ½ keeps its mean |Ṽ| error
         // within ε (½ Σ Ω c ≤ ε Ω) needs no rays. The O(1) bound Σ Ω c ≤ max cos · Ω screens
         // candidates.
@@ -1214,8 +1214,8 @@ fn trace_marked(ctx: &mut Ctx, cell: usize) {
 /// cone or a guess ends it) into the subtrees that hold a marked cell.
 fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
     let node = ctx.tree.nodes()[k];
-    let (max_cos, wholly_above) = node.horizon(ctx.n);
-    if max_cos <= 0.0 || !marked_within(&ctx.scratch.marked, node.first, node.first + node.count) {
+    let (up, wholly_above) = node.above(ctx.n);
+    if !up || !marked_within(&ctx.scratch.marked, node.first, node.first + node.count) {
         return;
     }
     let top = ctx.cell_leaves;
@@ -1229,7 +1229,7 @@ fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
     if cone && ctx.free.binary_search(&(k as u32)).is_ok() {
         return;
     }
-    if !known && 0.5 * max_cos <= 4.0 * ctx.guess_epsilon {
+    if !known && 0.5 * node.horizon(ctx.n).0 <= 4.0 * ctx.guess_epsilon {
         let w = node_weight(ctx, k, wholly_above);
         if w <= 0.0 || 0.5 * w <= ctx.guess_epsilon * node.solid_angle {
             return;
@@ -1243,8 +1243,8 @@ fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
 /// The cells [`trace_cells`] traces, in leaf order.
 fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     let node = ctx.tree.nodes()[k];
-    let (max_cos, wholly_above) = node.horizon(ctx.n);
-    if max_cos <= 0.0 {
+    let (up, wholly_above) = node.above(ctx.n);
+    if !up {
         return;
     }
     let cell = cell_size(ctx, &node, cell);

@@ -265,8 +265,8 @@ pub fn hemisphere_weight(
     if end <= first {
         return 0.0;
     }
-    let (max_cos, wholly_above) = node.horizon(normal);
-    if max_cos <= 0.0 {
+    let (up, wholly_above) = node.above(normal);
+    if !up {
         return 0.0;
     }
     if wholly_above || node.is_leaf() {

@@ -358,7 +358,7 @@ fn emit_range(
     if end <= lo || first >= hi {
         return;
     }
-    if node.horizon(normal).0 <= 0.0 {
+    if !node.above(normal).0 {
         return;
     }
     if (lo <= first && end <= hi) || node.is_leaf() {

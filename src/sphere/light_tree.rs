@@ -66,6 +66,26 @@ impl TreeNode {
             cos_b * cos_a - sin_b * sin_a > 0.0 && sin_b * cos_a + cos_b * sin_a > 0.0;
         (max_cos, wholly_above)
     }
+
+    /// [`TreeNode::horizon`] without the largest cosine's value: (whether some direction of the
+    /// cone lies above the horizon of unit `n`, whether every one does), with no square root.
+    /// For a cone narrower than a hemisphere (cos α > 0), some direction is above when
+    /// β < α + π/2, i.e. cos β > −sin α, and every one when β + α < π/2, i.e. cos β > sin α
+    /// (β + α = 0 excepted, as `horizon` has it); wider cones take `horizon`.
+    #[inline]
+    pub fn above(&self, n: DVec3) -> (bool, bool) {
+        let cos_b = self.mean_direction.dot(n).clamp(-1.0, 1.0);
+        let (cos_a, sin_a) = (self.cone_cos.clamp(-1.0, 1.0), self.cone_sin);
+        if cos_a > 0.0 {
+            (
+                cos_b > -sin_a,
+                cos_b > sin_a && (cos_b < 1.0 || sin_a > 0.0),
+            )
+        } else {
+            let (max_cos, wholly_above) = self.horizon(n);
+            (max_cos > 0.0, wholly_above)
+        }
+    }
 }
 
 /// Binary tree over a direction set.
@@ -436,6 +456,7 @@ fn build_node(
 mod tests {
     use super::*;
     use crate::math::compensated_sum;
+    use std::f64::consts::{FRAC_PI_2, PI};
 
     #[test]
     fn node_solid_angles_are_sums_of_their_leaves() {
@@ -492,6 +513,38 @@ mod tests {
                 tree.depth()
             );
         }
+    }
+
+    /// `above` answers as `horizon` does, for every node of a tree under random normals and
+    /// under normals that put the node's cone just (10⁻⁹ rad) above, below, within and beyond the
+    /// horizon, where the two tests part if either is wrong.
+    #[test]
+    fn above_answers_as_the_horizon() {
+        let tree = LightTree::build(&DirectionSet::cube(16).unwrap());
+        let mut rng = crate::math::Rng::new(5);
+        let mut seen = [0usize; 3];
+        for node in tree.nodes() {
+            let d = node.mean_direction;
+            let alpha = node.cone_cos.clamp(-1.0, 1.0).acos();
+            let t = rng.unit_vector().cross(d).normalize();
+            let mut normals: Vec<DVec3> = (0..4).map(|_| rng.unit_vector()).collect();
+            // β = angle(d, n) at the two borders, α + π/2 and π/2 − α, either side of them.
+            for border in [alpha + FRAC_PI_2, FRAC_PI_2 - alpha] {
+                for off in [-1e-9, 1e-9] {
+                    let b = border + off;
+                    if (0.0..=PI).contains(&b) {
+                        normals.push(d * b.cos() + t * b.sin());
+                    }
+                }
+            }
+            for n in normals {
+                let (max_cos, wholly_above) = node.horizon(n);
+                let want = (max_cos > 0.0, wholly_above);
+                assert_eq!(node.above(n), want, "node {node:?}, n {n:?}");
+                seen[want.0 as usize + want.1 as usize] += 1;
+            }
+        }
+        assert!(seen.iter().all(|&c| c > 1000), "{seen:?}");
     }
 
     #[test]
