@@ -186,6 +186,8 @@ pub struct CutScratch {
     /// Those of the first level, kept while the finer levels are traced: the pass after the last
     /// level rebuilds the subtrees that hold them.
     first_marked: Vec<(u32, u32, u32)>,
+    /// The cut being built ([`vertex_cut`]), kept to reuse its allocation.
+    entries: Vec<(u32, f32)>,
     generation: u32,
 }
 
@@ -217,6 +219,7 @@ impl CutScratch {
             recorded: Vec::new(),
             marked: Vec::new(),
             first_marked: Vec::new(),
+            entries: Vec::new(),
             generation: 0,
         }
     }
@@ -655,7 +658,10 @@ pub fn vertex_cut(
         ctx.free = planned.free;
         ctx.planned = true;
     }
-    let mut entries = Vec::new();
+    // Built in the scratch's buffer, which keeps its capacity from vertex to vertex; the cut is
+    // copied out at its size at the end.
+    let mut entries = std::mem::take(&mut ctx.scratch.entries);
+    entries.clear();
     let top = ctx.cell_leaves;
     build(&mut ctx, 0, false, top, &mut entries);
     finish_pass(&mut ctx, &entries);
@@ -708,10 +714,10 @@ pub fn vertex_cut(
     } else {
         Vec::new()
     };
-    // Kept for the whole bake: no spare capacity (a vertex's cut grew by doubling).
-    entries.shrink_to_fit();
+    let cut = entries.to_vec();
+    ctx.scratch.entries = entries;
     VertexCut {
-        entries,
+        entries: cut,
         rays: ctx.rays,
         epsilon_used: ctx.epsilon,
         interpolated: false,
@@ -789,7 +795,10 @@ pub fn plan_first_pass(
     );
     ctx.plan = Some(take_batch(&mut ctx));
     let top = ctx.cell_leaves;
-    build(&mut ctx, 0, false, top, &mut Vec::new());
+    let mut out = std::mem::take(&mut ctx.scratch.entries);
+    out.clear();
+    build(&mut ctx, 0, false, top, &mut out);
+    ctx.scratch.entries = out;
     let batch = ctx.plan.take().unwrap_or_default();
     let start = rays.cells.len() as u32;
     rays.cells.extend_from_slice(&batch.cells);

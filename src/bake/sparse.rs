@@ -386,7 +386,9 @@ pub fn blend_cuts(
     let mut uncovered = 0.0f64;
     let nodes = tree.nodes();
     let mut idx = vec![0usize; cuts.len()];
-    let mut entries = Vec::new();
+    // (Room for as many nodes as the cuts hold together: their common refinement seldom needs
+    // more, and growing by doubling reallocates several times a vertex.)
+    let mut entries = Vec::with_capacity(cuts.iter().map(|c| c.len()).sum());
     let mut pos = 0u32;
     let leaves = tree.leaf_count() as u32;
     while pos < leaves {
