@@ -150,7 +150,7 @@ impl Tracer {
     }
 
     /// An obvhs tracer with obvhs's build parameters for the CWBVH the rays traverse (the cone
-    /// queries' BVH2 is always built fast).
+    /// queries' BVH2 is built fast, or fastest where Embree traces the rays).
     pub fn with_params(mesh: &Mesh, params: BvhBuildParams) -> Self {
         Self::build(mesh, Backend::Obvhs, params)
     }
@@ -205,11 +205,17 @@ impl Tracer {
         let bvh2 = if triangles.is_empty() {
             Bvh2::default()
         } else {
-            obvhs::bvh2::builder::build_bvh2_from_tris(
-                &triangles,
-                BvhBuildParams::fast_build(),
-                &mut build_time,
-            )
+            // Where Embree traces the rays, the BVH2 serves the cone tests alone, which are
+            // answered alike on any tree (up to the conservative triangle test's false alarms,
+            // which a looser box lets through more often): built with obvhs's fastest settings
+            // (docs/benchmarks.md). obvhs's packets traverse it otherwise. (Built before Embree's
+            // scene, so that the two builds' peaks do not add up.)
+            let params = if cfg!(embree) && backend == Backend::Embree {
+                BvhBuildParams::very_fast_build()
+            } else {
+                BvhBuildParams::fast_build()
+            };
+            obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, params, &mut build_time)
         };
         #[cfg(embree)]
         let embree = (backend == Backend::Embree)
