@@ -491,7 +491,11 @@ impl<'a> Baker<'a> {
             None,
             false,
             progress,
-            &mut |i, cut| out[i] = cut,
+            &mut |batch, cuts| {
+                for (&i, cut) in batch.iter().zip(cuts) {
+                    out[i as usize] = cut;
+                }
+            },
         );
         out
     }
@@ -504,10 +508,19 @@ impl<'a> Baker<'a> {
         let points: Vec<Option<(DVec3, DVec3)>> = points.iter().copied().map(Some).collect();
         let mut cuts = Cuts::with_vertices(points.len());
         let mut rays = 0u64;
-        self.bake_points(&points, None, None, false, &|_| {}, &mut |i, cut| {
-            rays += cut.rays;
-            cuts.set(i, &cut.entries)
-        });
+        self.bake_points(
+            &points,
+            None,
+            None,
+            false,
+            &|_| {},
+            &mut |batch, batch_cuts| {
+                for (&i, cut) in batch.iter().zip(batch_cuts) {
+                    rays += cut.rays;
+                    cuts.set(i as usize, &cut.entries);
+                }
+            },
+        );
         (cuts, rays)
     }
 
@@ -524,8 +537,9 @@ impl<'a> Baker<'a> {
             .collect()
     }
 
-    /// Cuts at the given (position, unit normal) points (in parallel), each handed to `store` with
-    /// its index in `points` as a batch finishes; `None` gives an empty cut. `agreed(i)`, where
+    /// Cuts at the given (position, unit normal) points (in parallel), handed to `store` a batch
+    /// at a time as each finishes (the batch's indices in `points`, and their cuts in that order);
+    /// `None` gives an empty cut. `agreed(i)`, where
     /// given, is what point i takes from its traced neighbours and `record` whether each records
     /// what it knows for others ([`cuts::Prior`]).
     fn bake_points(
@@ -535,7 +549,7 @@ impl<'a> Baker<'a> {
         agreed: Option<&(dyn Fn(usize) -> Vec<[u64; 2]> + Sync)>,
         record: bool,
         progress: &(dyn Fn(usize) + Sync),
-        store: &mut dyn FnMut(usize, VertexCut),
+        store: &mut dyn FnMut(&[u32], Vec<VertexCut>),
     ) {
         let done = std::sync::atomic::AtomicUsize::new(0);
         // Traced in Morton order of their positions: each thread takes a contiguous block of that
@@ -636,9 +650,7 @@ impl<'a> Baker<'a> {
                     })
                     .collect()
             };
-            for (&i, cut) in batch.iter().zip(cuts) {
-                store(i as usize, cut);
-            }
+            store(batch, cuts);
         }
     }
 
@@ -721,7 +733,11 @@ impl<'a> Baker<'a> {
                 None,
                 false,
                 progress,
-                &mut |i, cut| state.store(todo[i] as usize, cut),
+                &mut |batch, cuts| {
+                    let ids: Vec<usize> =
+                        batch.iter().map(|&i| todo[i as usize] as usize).collect();
+                    state.store_many(&ids, cuts);
+                },
             );
             return;
         }
@@ -850,15 +866,18 @@ impl<'a> Baker<'a> {
                     })
                     .collect()
             };
+            let (mut ids, mut cuts) = (Vec::new(), Vec::new());
             for (&v, cut) in batch.iter().zip(blended) {
                 match cut {
                     Some(cut) => {
-                        state.store(v as usize, cut);
-                        interpolated += 1;
+                        ids.push(v as usize);
+                        cuts.push(cut);
                     }
                     None => traced.push(v),
                 }
             }
+            interpolated += ids.len();
+            state.store_many(&ids, cuts);
         }
         let done = own + interpolated;
         progress(done);
@@ -912,7 +931,13 @@ impl<'a> Baker<'a> {
             Some(&agreed),
             record,
             progress,
-            &mut |i, cut| state.store(vertices[i] as usize, cut),
+            &mut |batch, cuts| {
+                let ids: Vec<usize> = batch
+                    .iter()
+                    .map(|&i| vertices[i as usize] as usize)
+                    .collect();
+                state.store_many(&ids, cuts);
+            },
         );
         let new = std::mem::replace(&mut state.cell_bits, bits);
         for (v, b) in new.into_iter().enumerate() {
@@ -1024,8 +1049,9 @@ impl<'a> Baker<'a> {
                     ))
                 })
                 .collect();
-            self.bake_points(&points, None, None, false, &|_| {}, &mut |i, cut| {
-                state.store(first_new + i, cut)
+            self.bake_points(&points, None, None, false, &|_| {}, &mut |batch, cuts| {
+                let ids: Vec<usize> = batch.iter().map(|&i| first_new + i as usize).collect();
+                state.store_many(&ids, cuts);
             });
             split_total += parents.len();
             parents_all.extend(parents);

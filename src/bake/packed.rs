@@ -95,6 +95,49 @@ impl Cuts {
         self.spans[v] = [first as u32, end];
     }
 
+    /// [`Cuts::set`] for many vertices at once, `entries[i]` becoming vertex `vertices[i]`'s cut,
+    /// appended in that order (the same storage as setting them one by one); the entries are
+    /// copied and quantised in parallel, so that a bake's store of a batch does not hold up the
+    /// other threads.
+    ///
+    /// # Panics
+    /// When the storage passes 2³² entries (as [`Cuts::set`]), or the two lengths differ.
+    pub fn set_many(&mut self, vertices: &[usize], entries: &[&[(u32, f32)]]) {
+        assert_eq!(vertices.len(), entries.len(), "a cut per vertex");
+        if let Some(&last) = vertices.iter().max()
+            && last >= self.spans.len()
+        {
+            self.spans.resize(last + 1, [0, 0]);
+        }
+        let base = self.nodes.len();
+        let end = base + entries.iter().map(|e| e.len()).sum::<usize>();
+        // Fires only past 2³² nodes, as in `set`.
+        u32::try_from(end).expect("more than 2^32 cut nodes");
+        self.nodes.resize(end, 0);
+        self.visibility.resize(end, 0);
+        let mut slices = Vec::with_capacity(entries.len());
+        let (mut nodes, mut visibility) = (&mut self.nodes[base..], &mut self.visibility[base..]);
+        let mut first = base;
+        for (&v, e) in vertices.iter().zip(entries) {
+            let (n, rest_n) = std::mem::take(&mut nodes).split_at_mut(e.len());
+            let (q, rest_q) = std::mem::take(&mut visibility).split_at_mut(e.len());
+            (nodes, visibility) = (rest_n, rest_q);
+            slices.push((n, q, *e));
+            self.spans[v] = [first as u32, (first + e.len()) as u32];
+            first += e.len();
+        }
+        use rayon::prelude::*;
+        slices
+            .into_par_iter()
+            .with_min_len(256)
+            .for_each(|(n, q, e)| {
+                for ((n, q), &(k, v)) in n.iter_mut().zip(q.iter_mut()).zip(e) {
+                    *n = k;
+                    *q = quantise(v);
+                }
+            });
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.spans.len()
@@ -223,6 +266,45 @@ impl PartialBake {
         }
     }
 
+    /// [`PartialBake::store`] for many vertices at once (cut i is vertex `vertices[i]`'s), in
+    /// the same storage as storing them one by one in that order; the cuts are packed, and their
+    /// unpacked form dropped, in parallel ([`Cuts::set_many`]).
+    pub fn store_many(&mut self, vertices: &[usize], cuts: Vec<VertexCut>) {
+        use rayon::prelude::*;
+        if let Some(&last) = vertices.iter().max()
+            && last >= self.baked.len()
+        {
+            self.baked.resize(last + 1, false);
+            self.records.resize(last + 1, VertexRecord::default());
+        }
+        {
+            let entries: Vec<&[(u32, f32)]> = cuts.iter().map(|c| c.entries.as_slice()).collect();
+            self.cuts.set_many(vertices, &entries);
+        }
+        let kept: Vec<(VertexRecord, Vec<[u64; 2]>)> = cuts
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|c| {
+                let record = VertexRecord {
+                    rays: c.rays,
+                    epsilon_used: c.epsilon_used,
+                    interpolated: c.interpolated,
+                };
+                (record, c.cell_bits)
+            })
+            .collect();
+        for (&v, (record, bits)) in vertices.iter().zip(kept) {
+            self.baked[v] = true;
+            self.records[v] = record;
+            if !bits.is_empty() {
+                if self.cell_bits.len() <= v {
+                    self.cell_bits.resize(v + 1, Vec::new());
+                }
+                self.cell_bits[v] = bits;
+            }
+        }
+    }
+
     /// Vertex v's cut as stored (quantised V; no cell bits).
     pub fn vertex(&self, v: usize) -> VertexCut {
         let record = self.records.get(v).copied().unwrap_or_default();
@@ -282,5 +364,56 @@ mod tests {
         // A different V is a different cut.
         partial.store(2, cut(&[(0, 0.6)]));
         assert_ne!(partial.cuts, in_order);
+    }
+
+    /// Storing a batch at once lays the storage out as storing its cuts one by one, in order:
+    /// the same spans, nodes and quantised V byte for byte, records and cell bits, with vertices
+    /// out of order, past the end and stored twice.
+    #[test]
+    fn a_batch_stored_at_once_is_stored_as_one_by_one() {
+        let mut rng = crate::math::Rng::new(5);
+        let batches: Vec<Vec<(usize, VertexCut)>> = (0..3)
+            .map(|b| {
+                (0..700)
+                    .map(|i| {
+                        let len = (rng.next_f64() * 9.0) as usize;
+                        let entries = (0..len)
+                            .map(|j| (j as u32 * 3 + i as u32, rng.next_f64() as f32))
+                            .collect();
+                        let v = (i * 37 + b * 11) % 1000;
+                        let cell_bits = if i % 3 == 0 {
+                            vec![[i as u64, b as u64]]
+                        } else {
+                            Vec::new()
+                        };
+                        (
+                            v,
+                            VertexCut {
+                                entries,
+                                rays: i as u64,
+                                epsilon_used: 0.02 + b as f64,
+                                interpolated: i % 2 == 0,
+                                cell_bits,
+                            },
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let (mut one, mut many) = (PartialBake::new(900), PartialBake::new(900));
+        for batch in &batches {
+            for (v, c) in batch {
+                one.store(*v, c.clone());
+            }
+            let (ids, cuts): (Vec<usize>, Vec<VertexCut>) = batch.iter().cloned().unzip();
+            many.store_many(&ids, cuts);
+        }
+        assert_eq!(one.cuts.spans, many.cuts.spans);
+        assert_eq!(one.cuts.nodes, many.cuts.nodes);
+        assert_eq!(one.cuts.visibility, many.cuts.visibility);
+        assert_eq!(one.baked, many.baked);
+        assert_eq!(one.records, many.records);
+        assert_eq!(one.cell_bits, many.cell_bits);
+        assert!(one.baked.len() > 900 && one.cell_bits.iter().any(|b| !b.is_empty()));
     }
 }
