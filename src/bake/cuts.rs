@@ -188,6 +188,8 @@ pub struct CutScratch {
     first_marked: Vec<(u32, u32, u32)>,
     /// The cut being built ([`vertex_cut`]), kept to reuse its allocation.
     entries: Vec<(u32, f32)>,
+    /// The cosine masses a first pass's planning summed ([`node_weight`]), for its [`Planned`].
+    masses: Vec<(u32, f64)>,
     generation: u32,
 }
 
@@ -220,6 +222,7 @@ impl CutScratch {
             marked: Vec::new(),
             first_marked: Vec::new(),
             entries: Vec::new(),
+            masses: Vec::new(),
             generation: 0,
         }
     }
@@ -288,6 +291,8 @@ struct Ctx<'a> {
     /// The first pass was planned and traced ahead ([`Planned`]): its cells are set and its cone
     /// answers are in `free`.
     planned: bool,
+    /// The first pass is being planned: the cosine masses summed go to the scratch's `masses`.
+    planning: bool,
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
@@ -638,6 +643,10 @@ pub fn vertex_cut(
     if let Some((planned, rays)) = planned {
         // The first pass's rays, traced ahead with other vertices': as `trace_batch` caches them.
         let s = &mut *ctx.scratch;
+        for &(k, w) in &rays.masses[planned.masses.0 as usize..planned.masses.1 as usize] {
+            s.weight[k as usize] = w;
+            s.weight_stamp[k as usize] = s.generation;
+        }
         let range = planned.rays.0 as usize..planned.rays.1 as usize;
         let cells = rays.cells[range.clone()].iter();
         let answers = rays.occluded[range.clone()]
@@ -736,6 +745,8 @@ pub struct Planned {
     generation: u32,
     /// The vertex's rays in its [`GroupRays`]: [start, end).
     rays: (u32, u32),
+    /// The vertex's cosine masses in its [`GroupRays`]: [start, end).
+    masses: (u32, u32),
     /// The nodes whose cone the first pass found free, sorted.
     free: Vec<u32>,
 }
@@ -749,6 +760,10 @@ pub struct GroupRays {
     /// Each cell's cosine mass, as planning found it (NaN where not known): the scratch's cache
     /// of them does not outlive the other vertices of the group.
     weights: Vec<f64>,
+    /// The other cosine masses each vertex's planning summed (node, mass), for its cut to take
+    /// instead of summing them again: the group's later vertices overwrite the scratch's cache of
+    /// them, their horizons crossing the same nodes.
+    masses: Vec<(u32, f64)>,
     origins: Vec<Vec3A>,
     dirs: Vec<Vec3A>,
     occluded: Vec<bool>,
@@ -759,6 +774,7 @@ impl GroupRays {
     pub fn clear(&mut self) {
         self.cells.clear();
         self.weights.clear();
+        self.masses.clear();
         self.origins.clear();
         self.dirs.clear();
         self.occluded.clear();
@@ -794,6 +810,8 @@ pub fn plan_first_pass(
         position, normal, offset, tree, tracer, settings, scratch, prior, None,
     );
     ctx.plan = Some(take_batch(&mut ctx));
+    ctx.planning = true;
+    ctx.scratch.masses.clear();
     let top = ctx.cell_leaves;
     let mut out = std::mem::take(&mut ctx.scratch.entries);
     out.clear();
@@ -806,9 +824,12 @@ pub fn plan_first_pass(
     rays.dirs.extend_from_slice(&batch.dirs);
     rays.origins
         .extend(std::iter::repeat_n(ctx.apex, batch.dirs.len()));
+    let masses_start = rays.masses.len() as u32;
+    rays.masses.append(&mut ctx.scratch.masses);
     let planned = Planned {
         generation: ctx.scratch.generation,
         rays: (start, rays.cells.len() as u32),
+        masses: (masses_start, rays.masses.len() as u32),
         free: std::mem::take(&mut ctx.free),
     };
     ctx.scratch.batch = batch;
@@ -888,6 +909,7 @@ fn start_vertex<'a>(
         root_hemisphere: prior.root_hemisphere,
         plan: None,
         planned: false,
+        planning: false,
     }
 }
 
@@ -921,10 +943,21 @@ fn cosine_mass(tree: &LightTree, k: usize, n: DVec3) -> f64 {
         };
     }
     let range = node.first as usize..(node.first + node.count) as usize;
-    tree.leaf_moments()[range]
-        .iter()
-        .map(|m| m.dot(n).max(0.0))
-        .sum()
+    // Four running sums, so that the additions do not wait on each other (a single chain spent
+    // most of its time on the adder's latency).
+    let leaves = tree.leaf_moments().get(range).unwrap_or_default();
+    let mut sums = [0.0f64; 4];
+    let quads = leaves.chunks_exact(4);
+    let rest = quads.remainder();
+    for q in quads {
+        for (s, m) in sums.iter_mut().zip(q) {
+            *s += m.dot(n).max(0.0);
+        }
+    }
+    rest.iter()
+        .fold((sums[0] + sums[1]) + (sums[2] + sums[3]), |s, m| {
+            s + m.dot(n).max(0.0)
+        })
 }
 
 /// Nodes of at most this many leaves have their cosine mass summed leaf by leaf
@@ -944,6 +977,9 @@ fn node_weight(ctx: &mut Ctx, k: usize, wholly_above: bool) -> f64 {
     let w = cosine_mass(ctx.tree, k, ctx.n);
     s.weight[k] = w;
     s.weight_stamp[k] = s.generation;
+    if ctx.planning {
+        s.masses.push((k as u32, w));
+    }
     w
 }
 
