@@ -7,9 +7,9 @@
 //! Invariants: a vertex's entries are contiguous, in pre-order; V is quantised to 16 bits (error ≤
 //! 7.6e-6) when stored, so what a later step reads back (refinement, interpolation) is what the bake
 //! keeps; equality and the file's bytes do not depend on the order the vertices were stored in.
-//! Memory: a vertex's cut is packed as soon as it is made, so a whole bake never holds the unpacked
-//! form of more than a batch of vertices (at 1.6 M triangles that form was ~330 MiB beside the
-//! packed 237 MiB).
+//! Memory: a batch of cuts is packed as soon as it is made (in parallel,
+//! [`PartialBake::store_many`]), so a whole bake never holds the unpacked form of more than a batch
+//! of vertices (at 1.6 M triangles that form was ~330 MiB beside the packed 237 MiB).
 
 use super::VertexCut;
 
@@ -247,28 +247,12 @@ impl PartialBake {
     /// Stores vertex v's cut (vertices past the end are added) and marks it baked; its cell bits
     /// are kept when it recorded any.
     pub fn store(&mut self, v: usize, cut: VertexCut) {
-        if v >= self.baked.len() {
-            self.baked.resize(v + 1, false);
-            self.records.resize(v + 1, VertexRecord::default());
-        }
-        self.cuts.set(v, &cut.entries);
-        self.baked[v] = true;
-        self.records[v] = VertexRecord {
-            rays: cut.rays,
-            epsilon_used: cut.epsilon_used,
-            interpolated: cut.interpolated,
-        };
-        if !cut.cell_bits.is_empty() {
-            if self.cell_bits.len() <= v {
-                self.cell_bits.resize(v + 1, Vec::new());
-            }
-            self.cell_bits[v] = cut.cell_bits;
-        }
+        self.store_many(&[v], vec![cut]);
     }
 
-    /// [`PartialBake::store`] for many vertices at once (cut i is vertex `vertices[i]`'s), in
-    /// the same storage as storing them one by one in that order; the cuts are packed, and their
-    /// unpacked form dropped, in parallel ([`Cuts::set_many`]).
+    /// Stores cut i as vertex `vertices[i]`'s ([`PartialBake::store`]), in the same storage as
+    /// storing them one by one in that order; the cuts are packed, and their unpacked form
+    /// dropped, in parallel ([`Cuts::set_many`]).
     pub fn store_many(&mut self, vertices: &[usize], cuts: Vec<VertexCut>) {
         use rayon::prelude::*;
         if let Some(&last) = vertices.iter().max()
@@ -400,20 +384,35 @@ mod tests {
                     .collect()
             })
             .collect();
-        let (mut one, mut many) = (PartialBake::new(900), PartialBake::new(900));
+        // The reference: each cut set on its own (`Cuts::set`), its record and bits written out.
+        let mut cuts = Cuts::with_vertices(900);
+        let (mut baked, mut records) = (vec![false; 1000], vec![VertexRecord::default(); 1000]);
+        let mut cell_bits = vec![Vec::new(); 1000];
+        let mut many = PartialBake::new(900);
         for batch in &batches {
             for (v, c) in batch {
-                one.store(*v, c.clone());
+                cuts.set(*v, &c.entries);
+                baked[*v] = true;
+                records[*v] = VertexRecord {
+                    rays: c.rays,
+                    epsilon_used: c.epsilon_used,
+                    interpolated: c.interpolated,
+                };
+                if !c.cell_bits.is_empty() {
+                    cell_bits[*v] = c.cell_bits.clone();
+                }
             }
-            let (ids, cuts): (Vec<usize>, Vec<VertexCut>) = batch.iter().cloned().unzip();
-            many.store_many(&ids, cuts);
+            let (ids, batch_cuts): (Vec<usize>, Vec<VertexCut>) = batch.iter().cloned().unzip();
+            many.store_many(&ids, batch_cuts);
         }
-        assert_eq!(one.cuts.spans, many.cuts.spans);
-        assert_eq!(one.cuts.nodes, many.cuts.nodes);
-        assert_eq!(one.cuts.visibility, many.cuts.visibility);
-        assert_eq!(one.baked, many.baked);
-        assert_eq!(one.records, many.records);
-        assert_eq!(one.cell_bits, many.cell_bits);
-        assert!(one.baked.len() > 900 && one.cell_bits.iter().any(|b| !b.is_empty()));
+        assert_eq!(cuts.spans, many.cuts.spans);
+        assert_eq!(cuts.nodes, many.cuts.nodes);
+        assert_eq!(cuts.visibility, many.cuts.visibility);
+        let end = many.baked.len();
+        assert!(end > 900);
+        assert_eq!(baked[..end], many.baked[..]);
+        assert_eq!(records[..end], many.records[..]);
+        let last_bits = cell_bits.iter().rposition(|b| !b.is_empty()).unwrap_or(0);
+        assert_eq!(cell_bits[..=last_bits], many.cell_bits[..]);
     }
 }
