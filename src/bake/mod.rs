@@ -515,10 +515,12 @@ impl<'a> Baker<'a> {
             false,
             &|_| {},
             &mut |batch, batch_cuts| {
-                for (&i, cut) in batch.iter().zip(batch_cuts) {
-                    rays += cut.rays;
-                    cuts.set(i as usize, &cut.entries);
-                }
+                // Packed in parallel, as the bake's batches are ([`Cuts::set_many`]).
+                rays += batch_cuts.iter().map(|c| c.rays).sum::<u64>();
+                let ids: Vec<usize> = batch.iter().map(|&i| i as usize).collect();
+                let entries: Vec<&[(u32, f32)]> =
+                    batch_cuts.iter().map(|c| c.entries.as_slice()).collect();
+                cuts.set_many(&ids, &entries);
             },
         );
         (cuts, rays)
