@@ -1,0 +1,294 @@
+//! Bake studies: how the bake's visibility could be sampled, simulated with the bake's own tracer
+//! and printed (a developer tool behind figures in docs/benchmarks.md). Run one by name, e.g.
+//! `cargo run --release --features studies --example bake_studies -- edge_schemes dragon_100k
+//! interior_1k 400`.
+//!
+//! `edge_schemes MESH MAP [PROBES]`: two ways of refining shadow edges on a cube map of 128
+//! directions a side, each face on its own (no neighbours across a face's border), from cells of
+//! 16×16 directions (11.25°) down to 2×2 in three levels, over each probe vertex's whole
+//! hemisphere, with no light budget and no cone tests:
+//! - quarters: a ray along each cell's centre; a cell with a neighbour (of its 8) of the other
+//!   visibility is traced again as its 4 quarters, as the bake's boundary refinement does
+//!   (`bake::cuts` rule 6); each direction takes the visibility of the finest cell that holds it;
+//! - corners: a ray at each block's corners; a block whose 4 corners disagree is traced at its
+//!   centre and its edges' midpoints (points shared with its neighbours are traced once) and split
+//!   in 4; each direction takes the visibility of the nearest corner of the finest block that
+//!   holds it.
+//!
+//! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
+//! alone) and by that × the map's luminance.
+
+use glam::{DVec3, Vec3A};
+use glint::bake::tracer::Tracer;
+use rayon::prelude::*;
+
+#[path = "../tests/it/common.rs"]
+mod common;
+
+/// Directions per face side.
+const R: usize = 128;
+/// The first pass's cells (and blocks), directions a side.
+const CELL: usize = 16;
+/// Refinement levels: cells of `CELL >> LEVELS` directions a side at the finest.
+const LEVELS: usize = 3;
+
+/// A face's axes: (outward axis, u axis, v axis).
+fn face(f: usize) -> (DVec3, DVec3, DVec3) {
+    let e = [DVec3::X, DVec3::Y, DVec3::Z];
+    let sign = if f.is_multiple_of(2) { 1.0 } else { -1.0 };
+    (e[f / 2] * sign, e[(f / 2 + 1) % 3], e[(f / 2 + 2) % 3])
+}
+
+/// The face coordinate in [−1, 1] of `x` directions from the face's edge.
+fn coordinate(x: f64) -> f64 {
+    -1.0 + 2.0 * x / R as f64
+}
+
+/// The direction at (x, y), in directions from the face's corner, on face `f`.
+fn direction(f: usize, x: f64, y: f64) -> DVec3 {
+    let (w, u, v) = face(f);
+    (w + u * coordinate(x) + v * coordinate(y)).normalize()
+}
+
+/// The solid angle of the direction (texel) whose centre is at (x, y).
+fn solid_angle(x: f64, y: f64) -> f64 {
+    let (a, b) = (coordinate(x), coordinate(y));
+    (2.0 / R as f64).powi(2) / (1.0 + a * a + b * b).powf(1.5)
+}
+
+/// One probe vertex: its ray origin and normal, and the rays it has cast.
+struct Probe<'a> {
+    tracer: &'a Tracer,
+    origin: Vec3A,
+    normal: DVec3,
+    rays: u64,
+}
+
+impl Probe<'_> {
+    fn visible(&mut self, d: DVec3) -> i8 {
+        self.rays += 1;
+        i8::from(!self.tracer.occluded(self.origin, d.as_vec3().into()))
+    }
+
+    /// Whether a block of `s` directions a side at (x0, y0) reaches above the horizon (its corners
+    /// and centre).
+    fn above(&self, f: usize, x0: usize, y0: usize, s: usize) -> bool {
+        let (x0, y0, s) = (x0 as f64, y0 as f64, s as f64);
+        [(0.0, 0.0), (s, 0.0), (0.0, s), (s, s), (0.5 * s, 0.5 * s)]
+            .iter()
+            .any(|&(a, b)| direction(f, x0 + a, y0 + b).dot(self.normal) > 0.0)
+    }
+}
+
+/// Visibility per direction of face `f` (−1 where nothing was traced) by the quarter scheme, and
+/// the rays its first pass cast.
+fn quarters(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
+    let start = p.rays;
+    let mut out = vec![-1i8; R * R];
+    let (mut s, mut m) = (CELL, R / CELL);
+    let mut cells = vec![-1i8; m * m];
+    for cj in 0..m {
+        for ci in 0..m {
+            if p.above(f, ci * s, cj * s, s) {
+                let c = |i: usize| (i * s) as f64 + 0.5 * s as f64;
+                cells[cj * m + ci] = p.visible(direction(f, c(ci), c(cj)));
+            }
+        }
+    }
+    let first = p.rays - start;
+    let fill = |out: &mut [i8], cells: &[i8], m: usize, s: usize| {
+        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
+            let (ci, cj) = (k % m, k / m);
+            for y in cj * s..(cj + 1) * s {
+                out[y * R + ci * s..y * R + (ci + 1) * s].fill(c);
+            }
+        }
+    };
+    fill(&mut out, &cells, m, s);
+    for _ in 0..LEVELS {
+        let mut finer = vec![-1i8; 4 * m * m];
+        let h = s / 2;
+        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
+            let (ci, cj) = ((k % m) as i64, (k / m) as i64);
+            let unlike = (-1..=1)
+                .flat_map(|dj| (-1..=1).map(move |di| (ci + di, cj + dj)))
+                .filter(|&(i, j)| i >= 0 && j >= 0 && i < m as i64 && j < m as i64)
+                .any(|(i, j)| {
+                    let o = cells[j as usize * m + i as usize];
+                    o >= 0 && o != c
+                });
+            if unlike {
+                for q in 0..4 {
+                    let (qi, qj) = (2 * ci as usize + q % 2, 2 * cj as usize + q / 2);
+                    let c = |i: usize| (i * h) as f64 + 0.5 * h as f64;
+                    finer[qj * 2 * m + qi] = p.visible(direction(f, c(qi), c(qj)));
+                }
+            }
+        }
+        (s, m) = (h, 2 * m);
+        fill(&mut out, &finer, m, s);
+        cells = finer;
+    }
+    (out, first)
+}
+
+/// Visibility per direction of face `f` by the corner scheme, and the rays its first pass cast.
+fn corners(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
+    let start = p.rays;
+    let fine = CELL >> LEVELS;
+    let side = R / fine + 1;
+    let mut points = vec![-1i8; side * side];
+    let mut point = |p: &mut Probe, x: usize, y: usize| -> i8 {
+        let k = (y / fine) * side + x / fine;
+        if points[k] < 0 {
+            points[k] = p.visible(direction(f, x as f64, y as f64));
+        }
+        points[k]
+    };
+    let mut out = vec![-1i8; R * R];
+    let mut blocks: Vec<(usize, usize)> = (0..R / CELL)
+        .flat_map(|j| (0..R / CELL).map(move |i| (i * CELL, j * CELL)))
+        .filter(|&(x, y)| p.above(f, x, y, CELL))
+        .collect();
+    let (mut s, mut first) = (CELL, None);
+    while !blocks.is_empty() {
+        let mut finer = Vec::new();
+        for &(x0, y0) in &blocks {
+            let c = [
+                point(p, x0, y0),
+                point(p, x0 + s, y0),
+                point(p, x0, y0 + s),
+                point(p, x0 + s, y0 + s),
+            ];
+            if c.iter().all(|&a| a == c[0]) || s == fine {
+                for y in y0..y0 + s {
+                    for x in x0..x0 + s {
+                        let (cx, cy) = (2 * (x - x0) + 1 > s, 2 * (y - y0) + 1 > s);
+                        out[y * R + x] = c[2 * usize::from(cy) + usize::from(cx)];
+                    }
+                }
+            } else {
+                let h = s / 2;
+                finer.extend((0..4).map(|q| (x0 + (q % 2) * h, y0 + (q / 2) * h)));
+            }
+        }
+        first.get_or_insert(p.rays - start);
+        blocks = finer;
+        s /= 2;
+    }
+    (out, first.unwrap_or(0))
+}
+
+/// Per scheme: rays, first-pass rays, Σ |error| weighted by geometry and by luminance.
+#[derive(Default, Clone, Copy)]
+struct Tally {
+    rays: f64,
+    first: f64,
+    geometry: f64,
+    light: f64,
+}
+
+fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
+    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr")))?;
+    let mesh = &scene.mesh;
+    let tracer = Tracer::new(mesh);
+    let offset = 1e-4 * f64::from(scene.bounds.diagonal().max(1e-12));
+    // Per direction of each face: solid angle, and solid angle × luminance (the mean of RGB).
+    let weights: Vec<Vec<(f64, f64)>> = (0..6)
+        .map(|f| {
+            (0..R * R)
+                .map(|k| {
+                    let (x, y) = ((k % R) as f64 + 0.5, (k / R) as f64 + 0.5);
+                    let rgb = env.lookup(direction(f, x, y), 0.0);
+                    let omega = solid_angle(x, y);
+                    (omega, omega * (rgb[0] + rgb[1] + rgb[2]) / 3.0)
+                })
+                .collect()
+        })
+        .collect();
+    let n = mesh.positions.len();
+    let per_probe: Vec<([Tally; 2], (f64, f64))> = (0..probes)
+        .into_par_iter()
+        .map(|i| {
+            let v = (2 * i + 1) * n / (2 * probes);
+            let normal = mesh.normals[v].as_dvec3().normalize();
+            let origin = mesh.positions[v].as_dvec3() + normal * offset;
+            let mut p = Probe {
+                tracer: &tracer,
+                origin: origin.as_vec3().into(),
+                normal,
+                rays: 0,
+            };
+            let mut t = [Tally::default(); 2];
+            let mut total = (0.0, 0.0);
+            for (f, weights) in weights.iter().enumerate() {
+                let mut results = Vec::new();
+                for (s, scheme) in [quarters as fn(&mut Probe, usize) -> _, corners]
+                    .iter()
+                    .enumerate()
+                {
+                    let before = p.rays;
+                    let (vis, first) = scheme(&mut p, f);
+                    t[s].rays += (p.rays - before) as f64;
+                    t[s].first += first as f64;
+                    results.push(vis);
+                }
+                for k in 0..R * R {
+                    let d = direction(f, (k % R) as f64 + 0.5, (k / R) as f64 + 0.5);
+                    let cos = d.dot(normal);
+                    if cos <= 0.0 {
+                        continue;
+                    }
+                    let truth = p.visible(d);
+                    let (g, l) = (weights[k].0 * cos, weights[k].1 * cos);
+                    total = (total.0 + g, total.1 + l);
+                    for (s, vis) in results.iter().enumerate() {
+                        if vis[k] != truth {
+                            t[s].geometry += g;
+                            t[s].light += l;
+                        }
+                    }
+                }
+            }
+            (t, total)
+        })
+        .collect();
+    println!(
+        "{} probes, {R} directions a side, cells of {CELL} a side refined {LEVELS} times",
+        probes
+    );
+    println!(
+        "| scheme | rays per vertex | of them the first pass | error, solid angle × cosine | error, × luminance |"
+    );
+    println!("|---|---|---|---|---|");
+    // Pooled over the probes: Σ |error| weight / Σ weight, as the million's error is measured.
+    let total = per_probe
+        .iter()
+        .fold((0.0, 0.0), |a, (_, w)| (a.0 + w.0, a.1 + w.1));
+    for (s, name) in ["quarters", "corners"].iter().enumerate() {
+        let sum = per_probe.iter().fold(Tally::default(), |a, (t, _)| Tally {
+            rays: a.rays + t[s].rays,
+            first: a.first + t[s].first,
+            geometry: a.geometry + t[s].geometry,
+            light: a.light + t[s].light,
+        });
+        println!(
+            "| {name} | {:.0} | {:.0} | {:.3} % | {:.3} % |",
+            sum.rays / probes as f64,
+            sum.first / probes as f64,
+            100.0 * sum.geometry / total.0,
+            100.0 * sum.light / total.1
+        );
+    }
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    match args.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+        ["edge_schemes", mesh, map] => edge_schemes(mesh, map, 400),
+        ["edge_schemes", mesh, map, probes] => edge_schemes(mesh, map, probes.parse()?),
+        _ => anyhow::bail!("usage: bake_studies edge_schemes MESH MAP [PROBES]"),
+    }
+}
