@@ -17,6 +17,14 @@
 //!
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
+//!
+//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET ...]`: whole bakes (`Baker::new` and
+//! `bake_refined`, as `glint bake` makes them) with the visibility cell size in degrees, the
+//! boundary levels and the light budget β given (`-` leaves one to the default or the decisions),
+//! the default bake first: the rays, the bake's CPU and wall seconds after the decisions, and the
+//! visibility error at 400 imported vertices against a ray per direction, weighted by solid angle
+//! × cosine × the map's luminance (`tests/it/common.rs`'s `visibility_error`, as the million's is
+//! measured).
 
 use glam::{DVec3, Vec3A};
 use glint::bake::tracer::Tracer;
@@ -284,11 +292,73 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// CPU seconds of this process so far (user and system).
+fn cpu_seconds() -> f64 {
+    // SAFETY: getrusage writes the struct it is given; a zeroed rusage is a valid value.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
+    let t = |x: libc::timeval| x.tv_sec as f64 + x.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
+}
+
+fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()> {
+    use glint::bake::{BakeSettings, Baker};
+    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr")))?;
+    println!(
+        "| cell, levels, β asked | decided cell, levels | directions a side | rays | baked vertices | bake CPU (s) | bake wall (s) | error at 400 vertices |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for variant in std::iter::once("-/-/-").chain(variants.iter().copied()) {
+        let parts: Vec<&str> = variant.split('/').collect();
+        let [cell, levels, budget] = parts[..] else {
+            anyhow::bail!("{variant}: expected CELL/LEVELS/BUDGET, each a number or -");
+        };
+        let mut settings = BakeSettings::default();
+        if cell != "-" {
+            settings.cell_deg = Some(cell.parse()?);
+        }
+        if levels != "-" {
+            settings.boundary_levels = Some(levels.parse()?);
+        }
+        if budget != "-" {
+            settings.cut.boundary_budget = budget.parse()?;
+        }
+        let baker = Baker::new(&scene, &env, settings)?;
+        let (c0, t0) = (cpu_seconds(), std::time::Instant::now());
+        let bake = baker.bake_refined(None, &|_| {});
+        let (cpu, wall) = (cpu_seconds() - c0, t0.elapsed().as_secs_f64());
+        let luminance = common::leaf_luminance(&env, &baker);
+        let n = scene.mesh.positions.len();
+        let (mut wrong, mut total) = (0.0, 0.0);
+        for i in 0..400 {
+            let v = ((2 * i + 1) * n / 800) as u32;
+            let cut: Vec<(u32, f32)> = bake.cuts.cut(v as usize).collect();
+            let (e, w) = common::visibility_error(&baker, &luminance, v, &cut);
+            wrong += e;
+            total += w;
+        }
+        println!(
+            "| {variant} | {}°, {} | {} | {:.1} M | {} | {cpu:.2} | {wall:.2} | {:.3} % |",
+            baker.decisions.cell_deg,
+            baker.decisions.boundary_levels,
+            baker.set.resolution(),
+            bake.stats.rays_traced as f64 * 1e-6,
+            bake.stats.vertices,
+            100.0 * wrong / total
+        );
+    }
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.iter().map(String::as_str).collect::<Vec<_>>()[..] {
         ["edge_schemes", mesh, map] => edge_schemes(mesh, map, 400),
         ["edge_schemes", mesh, map, probes] => edge_schemes(mesh, map, probes.parse()?),
-        _ => anyhow::bail!("usage: bake_studies edge_schemes MESH MAP [PROBES]"),
+        ["budget_levels", mesh, map, ref variants @ ..] => budget_levels(mesh, map, variants),
+        _ => anyhow::bail!(
+            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET ...]"
+        ),
     }
 }
