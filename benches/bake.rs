@@ -642,7 +642,7 @@ fn million_error(
     let tracing = Baker::new(scene, env, every)?;
     let luminance = common::leaf_luminance(env, baker);
     let n = scene.mesh.positions.len();
-    let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
+    let sample = common::error_sample(n);
     let alone = glint::bake::Cuts::from_vertex_cuts(&tracing.bake_vertices(&sample, &|_| {}));
     let error =
         |v: u32, entries: &[(u32, f32)]| common::visibility_error(baker, &luminance, v, entries);

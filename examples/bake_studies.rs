@@ -296,6 +296,7 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
 fn cpu_seconds() -> f64 {
     // SAFETY: getrusage writes the struct it is given; a zeroed rusage is a valid value.
     let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: RUSAGE_SELF with a valid pointer to that struct.
     unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
     let t = |x: libc::timeval| x.tv_sec as f64 + x.tv_usec as f64 * 1e-6;
     t(u.ru_utime) + t(u.ru_stime)
@@ -329,10 +330,8 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
         let bake = baker.bake_refined(None, &|_| {});
         let (cpu, wall) = (cpu_seconds() - c0, t0.elapsed().as_secs_f64());
         let luminance = common::leaf_luminance(&env, &baker);
-        let n = scene.mesh.positions.len();
         let (mut wrong, mut total) = (0.0, 0.0);
-        for i in 0..400 {
-            let v = ((2 * i + 1) * n / 800) as u32;
+        for v in common::error_sample(scene.mesh.positions.len()) {
             let cut: Vec<(u32, f32)> = bake.cuts.cut(v as usize).collect();
             let (e, w) = common::visibility_error(&baker, &luminance, v, &cut);
             wrong += e;

@@ -509,7 +509,7 @@ fn vertex_sampling_interpolates_where_it_is_as_good_as_tracing() {
     let tracing = Baker::new(&scene, &env, every).unwrap();
     let luminance = common::leaf_luminance(&env, &baker);
     let n = scene.mesh.positions.len();
-    let sample: Vec<u32> = (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect();
+    let sample = common::error_sample(n);
     let mut state = glint::bake::PartialBake::new(n);
     baker.bake_set(&sample, &mut state, &|_| {});
     let traced = tracing.bake_vertices(&sample, &|_| {});

@@ -218,6 +218,12 @@ pub fn in_ci() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true")
 }
 
+/// The 400 vertices, spread evenly over a mesh's `n` vertex indices, that the bake's visibility
+/// error is measured at (`bake_visibility::`, the million's bench, `bake_studies`).
+pub fn error_sample(n: usize) -> Vec<u32> {
+    (0..400).map(|i| ((2 * i + 1) * n / 800) as u32).collect()
+}
+
 /// The visibility error of a cut at vertex `v` against a ray per direction, as
 /// (Σ_ℓ L_ℓ Ω_ℓ c_ℓ |V_ℓ − V_true,ℓ|, Σ_ℓ L_ℓ Ω_ℓ c_ℓ) over the leaf directions ℓ above the horizon
 /// (L the luminance per leaf, c the cosine; V_ℓ the value of the cut node holding ℓ, 0 where
