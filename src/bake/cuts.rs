@@ -41,7 +41,11 @@
 //!    first level marked (every finer cell lies within one), and the rest is taken from the first
 //!    pass (memos per node of at least a cell's size; the same cut as rebuilding it whole after
 //!    every level, [`CutSettings::rebuild_whole_passes`], tested). A level's rays go in packets:
-//!    the quarters of its marked cells, in leaf order.
+//!    the quarters of its marked cells, in leaf order. From the second level on
+//!    ([`CutSettings::edge_quarters_from`]) only the quarters beside a cell of the other
+//!    visibility are traced (the side of the edge that marked the cell); the others take the
+//!    cell's visibility (where every quarter is traced, about 89 % of them find their cell's
+//!    visibility again: docs/benchmarks.md).
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
@@ -117,6 +121,15 @@ pub struct CutSettings {
     /// on, it is the reference the direct levels and the memos are tested against.
     #[serde(default)]
     pub rebuild_whole_passes: bool,
+    /// From this boundary level on (1 = the first; 0: never), a marked cell is traced again only
+    /// at the quarters that border a cell of its size whose ray disagrees with its own (the side
+    /// the shadow edge that marked it lies on); its other quarters take its visibility without a
+    /// ray. At the first level a cell's quarters lie far from its ray, and tracing them all finds
+    /// more of the edge. From the second on, with [`CutSettings::boundary_budget`] lowered to
+    /// match, the bakes cast 17–27 % fewer rays with less error against a ray per direction on
+    /// every mesh and map of `cargo bench --bench bake -- matrix` (docs/benchmarks.md).
+    #[serde(default)]
+    pub edge_quarters_from: u32,
 }
 
 impl Default for CutSettings {
@@ -128,9 +141,10 @@ impl Default for CutSettings {
             cell_leaves: 4,
             ray_offset: 1e-4,
             boundary_levels: 0,
-            boundary_budget: 0.002,
+            boundary_budget: 0.0015,
             cone_leaves: 0,
             rebuild_whole_passes: false,
+            edge_quarters_from: 2,
         }
     }
 }
@@ -155,10 +169,11 @@ pub struct VertexCut {
 /// Per-thread scratch: the traced cell visibilities of the current vertex, keyed by (refinement
 /// level, the cell's first leaf) (generation-stamped so that nothing is cleared between vertices).
 pub struct CutScratch {
-    stamp: Vec<u32>,
-    visible: Vec<bool>,
-    /// Cells marked for boundary refinement (stamped with the generation).
-    refine: Vec<u32>,
+    /// Per cell key, one word: the generation that traced the cell (`>> 2`), whether it is
+    /// marked for boundary refinement ([`MARKED`]) and whether its ray was unoccluded
+    /// ([`VISIBLE`]); stamp, mark and answer share a word so that the marking's neighbour tests
+    /// load one.
+    cells: Vec<u32>,
     /// Cells traced for the current vertex (boundary refinement only): (node, cell size, scratch
     /// key), so that the marking reads no tree node for them.
     traced: Vec<(u32, u32, u32)>,
@@ -178,9 +193,9 @@ pub struct CutScratch {
     /// Every pass's finished cut of the current vertex, one after the other: what [`Memo`]
     /// ranges index.
     arena: Vec<(u32, f32)>,
-    /// The current pass's memos, in the order their nodes finished: (node, range in the pass's
-    /// output, sums).
-    recorded: Vec<(u32, u32, u32, Sums)>,
+    /// The current pass's memos, in the order their nodes finished: (node, its memo with the
+    /// range in the pass's output).
+    recorded: Vec<(u32, Memo)>,
     /// The cells the last [`mark_boundaries`] marked, in leaf order: (first leaf, end leaf, node).
     marked: Vec<(u32, u32, u32)>,
     /// Those of the first level, kept while the finer levels are traced: the pass after the last
@@ -192,6 +207,14 @@ pub struct CutScratch {
     masses: Vec<(u32, f64)>,
     generation: u32,
 }
+
+/// [`CutScratch::cells`]: the cell's ray was unoccluded.
+const VISIBLE: u32 = 1;
+/// [`CutScratch::cells`]: the cell is marked for boundary refinement.
+const MARKED: u32 = 2;
+/// The largest generation [`CutScratch::cells`] holds (two bits go to [`VISIBLE`] and
+/// [`MARKED`]); past it every stamp is cleared.
+const MAX_GENERATION: u32 = u32::MAX >> 2;
 
 /// A node's part of a cut: a range of [`CutScratch::arena`] and the node's [`Sums`].
 #[derive(Debug, Clone, Copy, Default)]
@@ -207,9 +230,7 @@ impl CutScratch {
     pub fn new(leaves: usize, boundary_levels: u32) -> Self {
         let n = leaves * (boundary_levels as usize + 1);
         Self {
-            stamp: vec![0; n],
-            visible: vec![false; n],
-            refine: vec![0; n],
+            cells: vec![0; n],
             traced: Vec::new(),
             batch: Batch::default(),
             gated: Vec::new(),
@@ -228,10 +249,9 @@ impl CutScratch {
     }
 
     fn next_vertex(&mut self) {
-        self.generation = self.generation.wrapping_add(1);
-        if self.generation == 0 {
-            self.stamp.iter_mut().for_each(|s| *s = 0);
-            self.refine.iter_mut().for_each(|s| *s = 0);
+        self.generation += 1;
+        if self.generation > MAX_GENERATION {
+            self.cells.iter_mut().for_each(|s| *s = 0);
             self.weight_stamp.iter_mut().for_each(|s| *s = 0);
             self.memo_stamp.iter_mut().for_each(|s| *s = 0);
             self.generation = 1;
@@ -247,6 +267,31 @@ impl CutScratch {
         self.clear_lists();
     }
 
+    /// Whether cell `key` was traced (or set) for the current vertex.
+    #[inline]
+    fn known(&self, key: usize) -> bool {
+        self.cells[key] >> 2 == self.generation
+    }
+
+    /// Cell `key`'s visibility, if it was traced (or set) for the current vertex.
+    #[inline]
+    fn visibility(&self, key: usize) -> Option<bool> {
+        let c = self.cells[key];
+        (c >> 2 == self.generation).then_some(c & VISIBLE != 0)
+    }
+
+    /// Sets cell `key`'s visibility for the current vertex (unmarked).
+    #[inline]
+    fn set(&mut self, key: usize, visible: bool) {
+        self.cells[key] = self.generation << 2 | visible as u32;
+    }
+
+    /// Whether cell `key` is marked for boundary refinement for the current vertex.
+    #[inline]
+    fn marked(&self, key: usize) -> bool {
+        self.cells[key] >> 1 == (self.generation << 1 | 1)
+    }
+
     fn clear_lists(&mut self) {
         self.traced.clear();
         self.arena.clear();
@@ -256,6 +301,10 @@ impl CutScratch {
 
 struct Ctx<'a> {
     tree: &'a LightTree,
+    neighbours: &'a CellNeighbours,
+    /// Cells smaller than this are traced only where they border the edge
+    /// ([`CutSettings::edge_quarters_from`], as a size; 0: none).
+    edge_quarters_below: usize,
     tracer: &'a Tracer,
     apex: Vec3A,
     n: DVec3,
@@ -296,8 +345,9 @@ struct Ctx<'a> {
 }
 
 /// Which visibility cells border which, for boundary refinement: per tree node that is a cell at
-/// one of the refined sizes (`cell_leaves`, a quarter of it, …), the cells of the same size whose
-/// leaves touch its leaves in the cube map's 8-neighbourhood (across face edges too).
+/// one of the refined sizes (`cell_leaves`, a quarter of it, …) or the quarters of the last, the
+/// cells of the same size whose leaves touch its leaves in the cube map's 8-neighbourhood (across
+/// face edges too), and the cell four times its size that holds it.
 #[derive(Debug, Clone, Default)]
 pub struct CellNeighbours {
     offsets: Vec<u32>,
@@ -305,16 +355,36 @@ pub struct CellNeighbours {
     /// The first leaf of each cell of `list`, beside it: the marking reads the neighbours' scratch
     /// keys without loading their tree nodes.
     firsts: Vec<u32>,
+    /// Per tree node that is a cell at a size below `cell_leaves`, the first leaf of the cell four
+    /// times its size that holds it ([`NO_CELL`] elsewhere).
+    parent_first: Vec<u32>,
+    /// The first leaf of the parent of each cell of `list`, beside it ([`NO_CELL`] for none).
+    parent_firsts: Vec<u32>,
 }
 
+/// No cell's neighbours (planning a first pass needs none).
+static NO_NEIGHBOURS: CellNeighbours = CellNeighbours {
+    offsets: Vec::new(),
+    list: Vec::new(),
+    firsts: Vec::new(),
+    parent_first: Vec::new(),
+    parent_firsts: Vec::new(),
+};
+
+/// [`CellNeighbours::parent_first`]: no such cell.
+const NO_CELL: u32 = u32::MAX;
+
 impl CellNeighbours {
-    /// Neighbours of the cells of `cell_leaves` leaves and of each quarter of it, `levels` sizes in
-    /// all (the sizes that can be refined: at least 4 leaves). `levels` = 0 gives an empty table.
+    /// Neighbours of the cells of `cell_leaves` leaves and of each quarter of it: the `levels`
+    /// sizes that can be refined (at least 4 leaves) and the quarters of the last, which the last
+    /// level traces ([`CutSettings::edge_quarters_from`] reads their neighbours). `levels` = 0
+    /// gives an empty table.
     pub fn new(set: &DirectionSet, tree: &LightTree, cell_leaves: usize, levels: u32) -> Self {
         let nodes = tree.nodes();
         let texels = tree.leaf_texels();
         let leaves = texels.len();
         let mut lists: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
+        let mut parent = vec![NO_CELL; nodes.len()];
         if levels > 0 && leaves == set.len() {
             let mut leaf_of_texel = vec![0u32; leaves];
             for (l, &t) in texels.iter().enumerate() {
@@ -343,15 +413,24 @@ impl CellNeighbours {
                 .collect();
             let mut size = cell_leaves;
             let mut cell_of_leaf = vec![u32::MAX; leaves];
-            for _ in 0..levels {
-                if size < 4 {
-                    break;
+            let mut coarser = vec![NO_CELL; leaves];
+            // The refinable sizes, and the quarters of the last (the cells the levels trace).
+            for level in 0..=levels {
+                if level > 0 {
+                    if size < 4 {
+                        break;
+                    }
+                    size = (size / 4).max(1);
+                    std::mem::swap(&mut coarser, &mut cell_of_leaf);
                 }
                 let cells = super::decisions::nodes_of_at_most(tree, size as u32, 0);
                 for &k in &cells {
                     let node = nodes[k];
                     cell_of_leaf[node.first as usize..(node.first + node.count) as usize]
                         .fill(k as u32);
+                    if level > 0 && coarser[node.first as usize] != k as u32 {
+                        parent[k] = coarser[node.first as usize];
+                    }
                 }
                 for k in cells {
                     let node = nodes[k];
@@ -367,7 +446,6 @@ impl CellNeighbours {
                     }
                     list.sort_unstable();
                 }
-                size /= 4;
             }
         }
         let mut offsets = Vec::with_capacity(nodes.len() + 1);
@@ -378,10 +456,28 @@ impl CellNeighbours {
             offsets.push(list.len() as u32);
         }
         let firsts = list.iter().map(|&m| nodes[m as usize].first).collect();
+        let parent_first: Vec<u32> = parent
+            .iter()
+            .map(|&a| match a {
+                NO_CELL => NO_CELL,
+                a => nodes[a as usize].first,
+            })
+            .collect();
+        let parent_firsts = list.iter().map(|&m| parent_first[m as usize]).collect();
         Self {
             offsets,
             list,
             firsts,
+            parent_first,
+            parent_firsts,
+        }
+    }
+
+    /// The first leaves of the parents of [`CellNeighbours::of`]'s cells, in the same order.
+    fn parent_firsts_of(&self, k: usize) -> &[u32] {
+        match (self.offsets.get(k), self.offsets.get(k + 1)) {
+            (Some(&a), Some(&b)) => &self.parent_firsts[a as usize..b as usize],
+            _ => &[],
         }
     }
 
@@ -472,8 +568,8 @@ fn cell_bits(
     let nodes = tree.nodes();
     let mut e = 0usize;
     for (i, &(_, first, end)) in cells.iter().enumerate() {
-        let known = if scratch.stamp[first as usize] == scratch.generation {
-            Some(scratch.visible[first as usize])
+        let known = if let Some(visible) = scratch.visibility(first as usize) {
+            Some(visible)
         } else {
             while e < entries.len()
                 && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first
@@ -527,12 +623,16 @@ fn mark_boundaries(
             continue;
         }
         let own = own as usize;
-        let v = scratch.visible[own];
-        if neighbours.firsts_of(k as usize).iter().any(|&first| {
-            let m = base + first as usize;
-            scratch.stamp[m] == generation && scratch.visible[m] != v
-        }) {
-            scratch.refine[own] = generation;
+        // A traced neighbour of the other visibility: its word is this vertex's stamp with the
+        // other answer (marks aside).
+        let other = (generation << 2 | (scratch.cells[own] & VISIBLE)) ^ VISIBLE;
+        let cells = &scratch.cells;
+        if neighbours
+            .firsts_of(k as usize)
+            .iter()
+            .any(|&first| cells.get(base + first as usize).map(|&c| c & !MARKED) == Some(other))
+        {
+            scratch.cells[own] |= MARKED;
             marked += 1;
             if let Some(g) = gate.filter(|_| budget > 0.0) {
                 let w = cell_gate(tree, g.prefix, k, n);
@@ -550,7 +650,7 @@ fn mark_boundaries(
                 break;
             }
             spent += w;
-            scratch.refine[key] = generation.wrapping_sub(1);
+            scratch.cells[key] &= !MARKED;
             marked -= 1;
         }
     }
@@ -558,7 +658,7 @@ fn mark_boundaries(
     scratch.marked.clear();
     for i in from..scratch.traced.len() {
         let (k, c, own) = scratch.traced[i];
-        if c as usize == cell && scratch.refine[own as usize] == generation {
+        if c as usize == cell && scratch.marked(own as usize) {
             let node = &tree.nodes()[k as usize];
             scratch
                 .marked
@@ -606,11 +706,11 @@ fn finish_pass(ctx: &mut Ctx, entries: &[(u32, f32)]) {
     }
     let s = &mut *ctx.scratch;
     let base = s.arena.len() as u32;
-    for &(k, start, end, sums) in &s.recorded {
+    for &(k, m) in &s.recorded {
         s.memo[k as usize] = Memo {
-            start: base + start,
-            end: base + end,
-            sums,
+            start: base + m.start,
+            end: base + m.end,
+            sums: m.sums,
         };
         s.memo_stamp[k as usize] = s.generation;
     }
@@ -638,7 +738,7 @@ pub fn vertex_cut(
 ) -> VertexCut {
     let resume = planned.as_ref().map(|(p, _)| p.generation);
     let mut ctx = start_vertex(
-        position, normal, offset, tree, tracer, settings, scratch, prior, resume,
+        position, normal, offset, tree, tracer, settings, scratch, prior, resume, neighbours,
     );
     if let Some((planned, rays)) = planned {
         // The first pass's rays, traced ahead with other vertices': as `trace_batch` caches them.
@@ -656,8 +756,7 @@ pub fn vertex_cut(
             if ctx.boundary_levels > 0 {
                 s.traced.push((k, cell, key));
             }
-            s.stamp[key as usize] = s.generation;
-            s.visible[key as usize] = !occluded;
+            s.set(key as usize, !occluded);
             if !w.is_nan() {
                 s.weight[k as usize] = w;
                 s.weight_stamp[k as usize] = s.generation;
@@ -807,7 +906,16 @@ pub fn plan_first_pass(
     rays: &mut GroupRays,
 ) -> Planned {
     let mut ctx = start_vertex(
-        position, normal, offset, tree, tracer, settings, scratch, prior, None,
+        position,
+        normal,
+        offset,
+        tree,
+        tracer,
+        settings,
+        scratch,
+        prior,
+        None,
+        &NO_NEIGHBOURS,
     );
     ctx.plan = Some(take_batch(&mut ctx));
     ctx.planning = true;
@@ -849,6 +957,7 @@ fn start_vertex<'a>(
     scratch: &'a mut CutScratch,
     prior: Prior<'a>,
     resume: Option<u32>,
+    neighbours: &'a CellNeighbours,
 ) -> Ctx<'a> {
     match resume {
         Some(generation) => scratch.resume_vertex(generation),
@@ -874,8 +983,7 @@ fn start_vertex<'a>(
                 break;
             };
             // A top-level cell's scratch key is its first leaf ([`Ctx::key`]).
-            scratch.stamp[first as usize] = scratch.generation;
-            scratch.visible[first as usize] = visible >> (i % 64) & 1 == 1;
+            scratch.set(first as usize, visible >> (i % 64) & 1 == 1);
             if settings.boundary_levels > 0 {
                 // Taken as traced, so that a shadow edge beside it is refined (with rays).
                 scratch
@@ -887,6 +995,11 @@ fn start_vertex<'a>(
     let apex = position + normal * offset;
     Ctx {
         tree,
+        neighbours,
+        edge_quarters_below: match settings.edge_quarters_from {
+            0 => 0,
+            l => settings.cell_leaves.max(1) >> (2 * (l - 1)).min(31),
+        },
         tracer,
         apex: apex.as_vec3().into(),
         n: normal,
@@ -989,14 +1102,15 @@ fn cell_size(ctx: &Ctx, node: &crate::sphere::TreeNode, cell: usize) -> usize {
     let refined = ctx.boundary_levels > 0
         && node.count as usize <= cell
         && !node.is_leaf()
-        && ctx.scratch.refine[ctx.key(node.first, cell)] == ctx.scratch.generation;
+        && ctx.scratch.marked(ctx.key(node.first, cell));
     if refined { (cell / 4).max(1) } else { cell }
 }
 
 /// `cell`: the visibility cell size (leaves) in this subtree — `cell_leaves`, or a quarter of it
 /// per boundary refinement.
 fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, f32)>) -> Sums {
-    let node = ctx.tree.nodes()[k];
+    let tree = ctx.tree;
+    let node = &tree.nodes()[k];
     let (up, wholly_above) = node.above(ctx.n);
     if !up {
         return (0.0, 0.0, 0.0);
@@ -1033,7 +1147,14 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
             let m = s.memo[k];
             let start = out.len() as u32;
             out.extend_from_slice(&s.arena[m.start as usize..m.end as usize]);
-            s.recorded.push((k as u32, start, out.len() as u32, m.sums));
+            s.recorded.push((
+                k as u32,
+                Memo {
+                    start,
+                    end: out.len() as u32,
+                    sums: m.sums,
+                },
+            ));
             return m.sums;
         }
     }
@@ -1055,9 +1176,10 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         out.push((k as u32, v as f32));
         let sums = (w, w * v, 0.0);
         if memo {
+            let end = out.len() as u32;
             ctx.scratch
                 .recorded
-                .push((k as u32, start, out.len() as u32, sums));
+                .push((k as u32, Memo { start, end, sums }));
         }
         return sums;
     }
@@ -1164,10 +1286,10 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     }
     let sums = (w, vl + vr, dev);
     if memo {
-        let range = (start as u32, out.len() as u32);
+        let (start, end) = (start as u32, out.len() as u32);
         ctx.scratch
             .recorded
-            .push((k as u32, range.0, range.1, sums));
+            .push((k as u32, Memo { start, end, sums }));
     }
     sums
 }
@@ -1176,8 +1298,8 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
 /// last ones recorded) no longer index anything, and any older memo of theirs may be stale.
 fn forget_memos(ctx: &mut Ctx, start: usize) {
     let s = &mut *ctx.scratch;
-    while let Some(&(k, from, _, _)) = s.recorded.last() {
-        if (from as usize) < start {
+    while let Some(&(k, m)) = s.recorded.last() {
+        if (m.start as usize) < start {
             break;
         }
         s.memo_stamp[k as usize] = 0;
@@ -1227,8 +1349,7 @@ fn trace_batch(ctx: &mut Ctx, mut batch: Batch) {
         if ctx.boundary_levels > 0 {
             s.traced.push((k, cell, key));
         }
-        s.stamp[key as usize] = s.generation;
-        s.visible[key as usize] = !occluded;
+        s.set(key as usize, !occluded);
     }
     ctx.rays += batch.cells.len() as u64;
     s.batch = batch;
@@ -1258,7 +1379,8 @@ fn trace_marked(ctx: &mut Ctx, cell: usize) {
 /// after it reaches them: the descent of [`build`] in a boundary pass (below the horizon, a free
 /// cone or a guess ends it) into the subtrees that hold a marked cell.
 fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
-    let node = ctx.tree.nodes()[k];
+    let tree = ctx.tree;
+    let node = &tree.nodes()[k];
     let (up, wholly_above) = node.above(ctx.n);
     if !up || !marked_within(&ctx.scratch.marked, node.first, node.first + node.count) {
         return;
@@ -1287,7 +1409,8 @@ fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
 
 /// The cells [`trace_cells`] traces, in leaf order.
 fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
-    let node = ctx.tree.nodes()[k];
+    let tree = ctx.tree;
+    let node = &tree.nodes()[k];
     let (up, wholly_above) = node.above(ctx.n);
     if !up {
         return;
@@ -1296,7 +1419,11 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     if node.is_leaf() || node.count as usize <= cell {
         let w = node_weight(ctx, k, wholly_above);
         let key = ctx.key(node.first, cell);
-        if w > 0.0 && ctx.scratch.stamp[key] != ctx.scratch.generation {
+        if w > 0.0 && !ctx.scratch.known(key) {
+            if let Some(v) = inherited(ctx, k, cell) {
+                ctx.scratch.set(key, v);
+                return;
+            }
             out.cells.push((k as u32, cell as u32, key as u32));
             out.dirs.push(node.mean_direction.as_vec3().into());
             out.weights.push(w);
@@ -1309,6 +1436,30 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     }
     collect_cells(ctx, node.left as usize, cell, out);
     collect_cells(ctx, node.right as usize, cell, out);
+}
+
+/// A quarter `k` (of `cell` leaves) of a cell that boundary refinement marked, at a level from
+/// [`CutSettings::edge_quarters_from`] on, takes the cell's visibility without a ray (`Some`)
+/// unless it borders a cell of the marked one's size whose visibility, traced or taken, differs
+/// (the shadow edge that marked it lies on that side; `None`: trace it).
+fn inherited(ctx: &Ctx, k: usize, cell: usize) -> Option<bool> {
+    if cell >= ctx.edge_quarters_below {
+        return None;
+    }
+    let a_first = *ctx.neighbours.parent_first.get(k)?;
+    if a_first == NO_CELL {
+        return None;
+    }
+    let base = ctx.key(0, cell * 4);
+    let s = &*ctx.scratch;
+    let v = s.visibility(base + a_first as usize)?;
+    let other = (s.generation << 2 | v as u32) ^ VISIBLE;
+    let near = ctx.neighbours.parent_firsts_of(k).iter().any(|&f| {
+        f != a_first
+            && f != NO_CELL
+            && s.cells.get(base + f as usize).map(|&c| c & !MARKED) == Some(other)
+    });
+    if near { None } else { Some(v) }
 }
 
 /// What the cells under node `k` (a node above the cell size) take from the neighbours
@@ -1370,8 +1521,8 @@ fn agreed_over(ctx: &Ctx, k: usize) -> Agreed {
 fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::TreeNode) -> bool {
     let key = ctx.key(node.first, cell);
     let s = &mut *ctx.scratch;
-    if s.stamp[key] == s.generation {
-        return s.visible[key];
+    if let Some(visible) = s.visibility(key) {
+        return visible;
     }
     let d = node.mean_direction;
     if let Some(plan) = &mut ctx.plan {
@@ -1379,16 +1530,21 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
         plan.cells.push((k as u32, cell as u32, key as u32));
         plan.dirs.push(d.as_vec3().into());
         plan.weights.push(f64::NAN);
-        s.stamp[key] = s.generation;
+        // Its answer comes with the group's rays ([`vertex_cut`] sets it).
+        s.set(key, true);
         return true;
     }
+    if let Some(v) = inherited(ctx, k, cell) {
+        ctx.scratch.set(key, v);
+        return v;
+    }
+    let s = &mut *ctx.scratch;
     if ctx.boundary_levels > 0 {
         s.traced.push((k as u32, cell as u32, key as u32));
     }
     let visible = !ctx.tracer.occluded(ctx.apex, d.as_vec3().into());
     ctx.rays += 1;
-    s.stamp[key] = s.generation;
-    s.visible[key] = visible;
+    s.set(key, visible);
     visible
 }
 
@@ -1484,9 +1640,33 @@ mod tests {
         let table = CellNeighbours::new(&set, &tree, 16, 2);
         let nodes = tree.nodes();
         let texel = set.texel_angle();
-        for size in [16usize, 4] {
+        // The two refinable sizes and the quarters of the last, which the last level traces.
+        for size in [16usize, 4, 1] {
             // The cells of this size: the largest nodes of at most `size` leaves.
             let cells = crate::bake::decisions::nodes_of_at_most(&tree, size as u32, 0);
+            // Each cell's parent: the cell four times its size that holds its leaves.
+            let coarser = crate::bake::decisions::nodes_of_at_most(&tree, 4 * size as u32, 0);
+            for &a in &cells {
+                let want = if size == 16 {
+                    NO_CELL
+                } else {
+                    let node = nodes[a];
+                    let p = coarser
+                        .iter()
+                        .map(|&p| &nodes[p])
+                        .find(|p| p.first <= node.first && node.first < p.first + p.count)
+                        .unwrap();
+                    assert!(node.first + node.count <= p.first + p.count);
+                    p.first
+                };
+                assert_eq!(table.parent_first[a], want, "size {size}: cell {a}");
+                let parents: Vec<u32> = table
+                    .of(a)
+                    .iter()
+                    .map(|&m| table.parent_first[m as usize])
+                    .collect();
+                assert_eq!(table.parent_firsts_of(a), parents, "cell {a}: parents");
+            }
             let leaves = |k: usize| {
                 (nodes[k].first..nodes[k].first + nodes[k].count)
                     .map(|l| tree.leaf_directions()[l as usize])
@@ -1541,7 +1721,7 @@ mod tests {
                 cells.len()
             );
         }
-        // Leaves (size 1) cannot be refined, so they get no lists; no levels, no table.
+        // No levels, no table.
         assert!(CellNeighbours::new(&set, &tree, 16, 0).of(5).is_empty());
     }
 }

@@ -75,7 +75,7 @@ pub struct RenderArgs {
     /// the bake decides).
     #[arg(long, requires = "trace_visibility", default_value_t = glint::render::traced::TRACED_BOUNDARY_LEVELS)]
     pub trace_levels: u32,
-    /// With --trace-visibility: the light budget of that refinement (default: the bake's, 0.002):
+    /// With --trace-visibility: the light budget of that refinement (default: the bake's, 0.0015):
     /// shadow edges of lights carrying less than this share of the light are left unrefined; 0
     /// refines every shadow edge, for a sharp lobe that takes its light from a dim one.
     #[arg(long, requires = "trace_visibility", value_parser = budget_share)]
