@@ -1118,7 +1118,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     // A cell that a shadow edge crosses (marked by `mark_boundaries`) is traced as cells of a
     // quarter of its leaves instead.
     let cell = if known {
-        cell_size(ctx, &node, cell)
+        cell_size(ctx, node, cell)
     } else {
         cell
     };
@@ -1128,7 +1128,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
         if w <= 0.0 {
             return (0.0, 0.0, 0.0);
         }
-        let v = if cell_visible(ctx, k, cell, &node) {
+        let v = if cell_visible(ctx, k, cell, node) {
             1.0
         } else {
             0.0
@@ -1387,7 +1387,7 @@ fn reach_marked(ctx: &mut Ctx, k: usize, known: bool, out: &mut Batch) {
     }
     let top = ctx.cell_leaves;
     if node.is_leaf() || (known && node.count as usize <= top) {
-        if cell_size(ctx, &node, top) < top {
+        if cell_size(ctx, node, top) < top {
             collect_cells(ctx, k, top, out);
         }
         return;
@@ -1415,7 +1415,7 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     if !up {
         return;
     }
-    let cell = cell_size(ctx, &node, cell);
+    let cell = cell_size(ctx, node, cell);
     if node.is_leaf() || node.count as usize <= cell {
         let w = node_weight(ctx, k, wholly_above);
         let key = ctx.key(node.first, cell);
