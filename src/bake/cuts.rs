@@ -174,6 +174,11 @@ pub struct CutScratch {
     /// ([`VISIBLE`]); stamp, mark and answer share a word so that the marking's neighbour tests
     /// load one.
     cells: Vec<u32>,
+    /// Per cell key, for a cell marked at a level whose quarters are edge quarters
+    /// ([`CutSettings::edge_quarters_from`]): which of its neighbours ([`CellNeighbours::of`],
+    /// bit j for the j-th, the 32nd on in bit 31) have the other visibility. Valid where the cell
+    /// is marked for the current vertex.
+    edge_masks: Vec<u32>,
     /// Cells traced for the current vertex (boundary refinement only): (node, cell size, scratch
     /// key), so that the marking reads no tree node for them.
     traced: Vec<(u32, u32, u32)>,
@@ -231,6 +236,7 @@ impl CutScratch {
         let n = leaves * (boundary_levels as usize + 1);
         Self {
             cells: vec![0; n],
+            edge_masks: vec![0; n],
             traced: Vec::new(),
             batch: Batch::default(),
             gated: Vec::new(),
@@ -358,8 +364,11 @@ pub struct CellNeighbours {
     /// Per tree node that is a cell at a size below `cell_leaves`, the first leaf of the cell four
     /// times its size that holds it ([`NO_CELL`] elsewhere).
     parent_first: Vec<u32>,
-    /// The first leaf of the parent of each cell of `list`, beside it ([`NO_CELL`] for none).
-    parent_firsts: Vec<u32>,
+    /// Per tree node that is a cell with a parent, which of its parent's neighbours its own
+    /// neighbours lie in: bit j for the parent's j-th ([`CellNeighbours::of`]; the 32nd on in bit
+    /// 31). A quarter borders the cells its parent's [`CutScratch::edge_masks`] bits name where the
+    /// two masks meet.
+    quarter_masks: Vec<u32>,
 }
 
 /// No cell's neighbours (planning a first pass needs none).
@@ -368,7 +377,7 @@ static NO_NEIGHBOURS: CellNeighbours = CellNeighbours {
     list: Vec::new(),
     firsts: Vec::new(),
     parent_first: Vec::new(),
-    parent_firsts: Vec::new(),
+    quarter_masks: Vec::new(),
 };
 
 /// [`CellNeighbours::parent_first`]: no such cell.
@@ -463,21 +472,28 @@ impl CellNeighbours {
                 a => nodes[a as usize].first,
             })
             .collect();
-        let parent_firsts = list.iter().map(|&m| parent_first[m as usize]).collect();
+        let of = |k: usize| &list[offsets[k] as usize..offsets[k + 1] as usize];
+        let quarter_masks = (0..nodes.len())
+            .map(|q| {
+                let a = parent[q];
+                if a == NO_CELL {
+                    return 0;
+                }
+                let around = of(a as usize);
+                of(q).iter().fold(0u32, |mask, &m| {
+                    match around.binary_search(&parent[m as usize]) {
+                        Ok(j) => mask | 1 << j.min(31),
+                        Err(_) => mask,
+                    }
+                })
+            })
+            .collect();
         Self {
             offsets,
             list,
             firsts,
             parent_first,
-            parent_firsts,
-        }
-    }
-
-    /// The first leaves of the parents of [`CellNeighbours::of`]'s cells, in the same order.
-    fn parent_firsts_of(&self, k: usize) -> &[u32] {
-        match (self.offsets.get(k), self.offsets.get(k + 1)) {
-            (Some(&a), Some(&b)) => &self.parent_firsts[a as usize..b as usize],
-            _ => &[],
+            quarter_masks,
         }
     }
 
@@ -612,6 +628,8 @@ fn mark_boundaries(
     gate: Option<LightGate>,
 ) -> bool {
     let (tree, base, n) = (ctx.tree, ctx.key(0, cell), ctx.n);
+    // This level's quarters are edge quarters ([`inherited`]).
+    let edge_quarters = (cell / 4).max(1) < ctx.edge_quarters_below;
     let scratch = &mut *ctx.scratch;
     let generation = scratch.generation;
     let budget = gate.map_or(0.0, |g| ctx.budget * g.total);
@@ -627,11 +645,22 @@ fn mark_boundaries(
         // other answer (marks aside).
         let other = (generation << 2 | (scratch.cells[own] & VISIBLE)) ^ VISIBLE;
         let cells = &scratch.cells;
-        if neighbours
-            .firsts_of(k as usize)
-            .iter()
-            .any(|&first| cells.get(base + first as usize).map(|&c| c & !MARKED) == Some(other))
-        {
+        let firsts = neighbours.firsts_of(k as usize);
+        let differs =
+            |first: u32| cells.get(base + first as usize).map(|&c| c & !MARKED) == Some(other);
+        let edge = if edge_quarters {
+            // Every such neighbour: the quarters beside them are the ones traced.
+            let mask = firsts
+                .iter()
+                .enumerate()
+                .filter(|&(_, &first)| differs(first))
+                .fold(0u32, |mask, (j, _)| mask | 1 << j.min(31));
+            scratch.edge_masks[own] = mask;
+            mask != 0
+        } else {
+            firsts.iter().any(|&first| differs(first))
+        };
+        if edge {
             scratch.cells[own] |= MARKED;
             marked += 1;
             if let Some(g) = gate.filter(|_| budget > 0.0) {
@@ -1450,15 +1479,10 @@ fn inherited(ctx: &Ctx, k: usize, cell: usize) -> Option<bool> {
     if a_first == NO_CELL {
         return None;
     }
-    let base = ctx.key(0, cell * 4);
+    let a = ctx.key(a_first as usize as u32, cell * 4);
     let s = &*ctx.scratch;
-    let v = s.visibility(base + a_first as usize)?;
-    let other = (s.generation << 2 | v as u32) ^ VISIBLE;
-    let near = ctx.neighbours.parent_firsts_of(k).iter().any(|&f| {
-        f != a_first
-            && f != NO_CELL
-            && s.cells.get(base + f as usize).map(|&c| c & !MARKED) == Some(other)
-    });
+    let v = s.visibility(a)?;
+    let near = s.edge_masks[a] & ctx.neighbours.quarter_masks[k] != 0;
     if near { None } else { Some(v) }
 }
 
@@ -1660,12 +1684,26 @@ mod tests {
                     p.first
                 };
                 assert_eq!(table.parent_first[a], want, "size {size}: cell {a}");
-                let parents: Vec<u32> = table
-                    .of(a)
-                    .iter()
-                    .map(|&m| table.parent_first[m as usize])
-                    .collect();
-                assert_eq!(table.parent_firsts_of(a), parents, "cell {a}: parents");
+                // Which of the parent's neighbours the cell borders: those holding one of its own.
+                let mask = if size == 16 {
+                    0
+                } else {
+                    let p = coarser
+                        .iter()
+                        .copied()
+                        .find(|&p| nodes[p].first == want)
+                        .unwrap();
+                    let around = table.of(p);
+                    assert!(around.len() <= 31, "cell {p}: {} neighbours", around.len());
+                    let holds = |c: u32, m: u32| {
+                        let (c, m) = (&nodes[c as usize], &nodes[m as usize]);
+                        c.first <= m.first && m.first < c.first + c.count
+                    };
+                    (0..around.len())
+                        .filter(|&j| table.of(a).iter().any(|&m| holds(around[j], m)))
+                        .fold(0u32, |mask, j| mask | 1 << j)
+                };
+                assert_eq!(table.quarter_masks[a], mask, "size {size}: cell {a}");
             }
             let leaves = |k: usize| {
                 (nodes[k].first..nodes[k].first + nodes[k].count)
