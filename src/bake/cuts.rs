@@ -664,8 +664,11 @@ fn mark_boundaries(
             scratch.cells[own] |= MARKED;
             marked += 1;
             if let Some(g) = gate.filter(|_| budget > 0.0) {
-                let w = cell_gate(tree, g.prefix, k, n);
-                scratch.gated.push((w, own));
+                // Only a cell gating at most the budget can be left coarse.
+                let w = cell_gate(tree, g.prefix, k, n, budget);
+                if w <= budget {
+                    scratch.gated.push((w, own));
+                }
             }
         }
     }
@@ -701,8 +704,13 @@ fn mark_boundaries(
 /// The light cell `k` gates ([`LightGate`]): [`super::refine::hemisphere_weight`] over the cell,
 /// Σ max(r Ω d·n, 0) over its leaves, summed leaf by leaf where the horizon crosses it (a shadow
 /// edge along the horizon is common, and descending the cell's subtree loads a node for each of
-/// its ~2× as many nodes, where the leaves' prefix sums lie together).
-fn cell_gate(tree: &LightTree, prefix: &[DVec3], k: u32, n: DVec3) -> f64 {
+/// its ~2× as many nodes, where the leaves' prefix sums lie together). Exact where it is at most
+/// `limit`; above it, the sum may stop at a value above `limit` (Σ r Ω d·n over the cell, a lower
+/// bound: the clamp only adds).
+// Not inlined: inside the marking loop its running sum was kept on the stack, a store and a load
+// per leaf.
+#[inline(never)]
+fn cell_gate(tree: &LightTree, prefix: &[DVec3], k: u32, n: DVec3, limit: f64) -> f64 {
     let node = &tree.nodes()[k as usize];
     if prefix.len() <= tree.leaf_count() || node.is_leaf() || node.count as usize > LEAF_SUM_MAX {
         return super::refine::hemisphere_weight(tree, prefix, k, 0, tree.leaf_count() as u32, n);
@@ -714,6 +722,11 @@ fn cell_gate(tree: &LightTree, prefix: &[DVec3], k: u32, n: DVec3) -> f64 {
     } else if wholly_above {
         (prefix[end] - prefix[first]).dot(n).max(0.0)
     } else {
+        // (With a margin far above the rounding of the prefix sums' difference.)
+        let lower = (prefix[end] - prefix[first]).dot(n);
+        if lower > limit * (1.0 + 1e-9) {
+            return lower;
+        }
         prefix[first..=end]
             .windows(2)
             .map(|p| (p[1] - p[0]).dot(n).max(0.0))
@@ -1610,7 +1623,7 @@ mod tests {
                     tree.leaf_count() as u32,
                     n,
                 );
-                let got = cell_gate(&tree, &prefix, k as u32, n);
+                let got = cell_gate(&tree, &prefix, k as u32, n, f64::INFINITY);
                 assert!(
                     (got - want).abs() <= 1e-12 * want.abs().max(1e-9),
                     "cell {k} ({size} leaves), n {n:?}: {got} against {want}"
