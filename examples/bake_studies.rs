@@ -18,9 +18,11 @@
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
 //!
-//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET ...]`: whole bakes (`Baker::new` and
+//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE] ...]`: whole bakes (`Baker::new` and
 //! `bake_refined`, as `glint bake` makes them) with the visibility cell size in degrees, the
-//! boundary levels and the light budget β given (`-` leaves one to the default or the decisions),
+//! boundary levels, the light budget β and the first level of edge quarters
+//! (`CutSettings::edge_quarters_from`, 0: every quarter traced) given (`-` or leaving EDGE out
+//! leaves one to the default or the decisions),
 //! the default bake first: the rays, the bake's CPU and wall seconds after the decisions, and the
 //! visibility error at 400 imported vertices against a ray per direction, weighted by solid angle
 //! × cosine × the map's luminance (`tests/it/common.rs`'s `visibility_error`, as the million's is
@@ -307,13 +309,15 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
     let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
     let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr")))?;
     println!(
-        "| cell, levels, β asked | decided cell, levels | directions a side | rays | baked vertices | bake CPU (s) | bake wall (s) | error at 400 vertices |"
+        "| cell, levels, β, edge quarters asked | decided cell, levels | directions a side | rays | baked vertices | bake CPU (s) | bake wall (s) | error at 400 vertices |"
     );
     println!("|---|---|---|---|---|---|---|---|");
     for variant in std::iter::once("-/-/-").chain(variants.iter().copied()) {
         let parts: Vec<&str> = variant.split('/').collect();
-        let [cell, levels, budget] = parts[..] else {
-            anyhow::bail!("{variant}: expected CELL/LEVELS/BUDGET, each a number or -");
+        let (cell, levels, budget, edge) = match parts[..] {
+            [cell, levels, budget] => (cell, levels, budget, "-"),
+            [cell, levels, budget, edge] => (cell, levels, budget, edge),
+            _ => anyhow::bail!("{variant}: expected CELL/LEVELS/BUDGET[/EDGE], each a number or -"),
         };
         let mut settings = BakeSettings::default();
         if cell != "-" {
@@ -324,6 +328,9 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
         }
         if budget != "-" {
             settings.cut.boundary_budget = budget.parse()?;
+        }
+        if edge != "-" {
+            settings.cut.edge_quarters_from = edge.parse()?;
         }
         let baker = Baker::new(&scene, &env, settings)?;
         let (c0, t0) = (cpu_seconds(), std::time::Instant::now());
