@@ -41,11 +41,13 @@
 //!    first level marked (every finer cell lies within one), and the rest is taken from the first
 //!    pass (memos per node of at least a cell's size; the same cut as rebuilding it whole after
 //!    every level, [`CutSettings::rebuild_whole_passes`], tested). A level's rays go in packets:
-//!    the quarters of its marked cells, in leaf order. From the second level on
-//!    ([`CutSettings::edge_quarters_from`]) only the quarters beside a cell of the other
-//!    visibility are traced (the side of the edge that marked the cell); the others take the
-//!    cell's visibility (where every quarter is traced, about 89 % of them find their cell's
-//!    visibility again: docs/benchmarks.md).
+//!    the quarters of its marked cells, in leaf order. Only the quarters beside a cell of the
+//!    other visibility are traced ([`CutSettings::edge_quarters_from`]: the side of the edge that
+//!    marked the cell); the others take the cell's visibility (where every quarter is traced,
+//!    about 89 % of them find their cell's visibility again: docs/benchmarks.md). At the first
+//!    level, where cells are widest, a cell's other quarters are traced after all where one of
+//!    its edge quarters disagrees with it ([`CutSettings::far_quarters_through`]: the edge
+//!    crosses into it and may bend).
 //! 7. If the cut has more than `max_cut` nodes, ε is doubled and the merge redone (traced cells are
 //!    cached, so no ray is cast twice) until it fits; such vertices are counted. Only the merge (5)
 //!    takes the relaxed ε; the blind guess (3) keeps the settings' ε.
@@ -124,12 +126,19 @@ pub struct CutSettings {
     /// From this boundary level on (1 = the first; 0: never), a marked cell is traced again only
     /// at the quarters that border a cell of its size whose ray disagrees with its own (the side
     /// the shadow edge that marked it lies on); its other quarters take its visibility without a
-    /// ray. At the first level a cell's quarters lie far from its ray, and tracing them all finds
-    /// more of the edge. From the second on, with [`CutSettings::boundary_budget`] lowered to
-    /// match, the bakes cast 17–27 % fewer rays with less error against a ray per direction on
-    /// every mesh and map of `cargo bench --bench bake -- matrix` (docs/benchmarks.md).
+    /// ray, unless [`CutSettings::far_quarters_through`] has them traced. With it through the
+    /// first level and [`CutSettings::boundary_budget`] lowered to match, the bakes cast 24–33 %
+    /// fewer rays than tracing every quarter, with less error against a ray per direction, on
+    /// every mesh and map of `cargo bench --bench bake -- matrix` that refines shadow edges
+    /// (docs/benchmarks.md).
     #[serde(default)]
     pub edge_quarters_from: u32,
+    /// Through this boundary level (1 = the first; 0: none), where edge quarters are traced, a
+    /// marked cell's other quarters are traced too when one of its edge quarters disagrees with
+    /// it: the edge crosses into the cell, and in a wide cell it may bend away from the side that
+    /// marked it.
+    #[serde(default)]
+    pub far_quarters_through: u32,
 }
 
 impl Default for CutSettings {
@@ -144,7 +153,8 @@ impl Default for CutSettings {
             boundary_budget: 0.0015,
             cone_leaves: 0,
             rebuild_whole_passes: false,
-            edge_quarters_from: 2,
+            edge_quarters_from: 1,
+            far_quarters_through: 1,
         }
     }
 }
@@ -179,6 +189,12 @@ pub struct CutScratch {
     /// bit j for the j-th, the 32nd on in bit 31) have the other visibility. Valid where the cell
     /// is marked for the current vertex.
     edge_masks: Vec<u32>,
+    /// The quarters a level took from their cell without a ray that may yet be traced
+    /// ([`CutSettings::far_quarters_through`]): (node, size, scratch key, the cell's key).
+    held: Vec<(u32, u32, u32, u32)>,
+    /// The keys of the cells whose traced edge quarters include one of the other visibility
+    /// ([`trace_far_quarters`]), kept to reuse its allocation.
+    crossed: Vec<u32>,
     /// Cells traced for the current vertex (boundary refinement only): (node, cell size, scratch
     /// key), so that the marking reads no tree node for them.
     traced: Vec<(u32, u32, u32)>,
@@ -237,6 +253,8 @@ impl CutScratch {
         Self {
             cells: vec![0; n],
             edge_masks: vec![0; n],
+            held: Vec::new(),
+            crossed: Vec::new(),
             traced: Vec::new(),
             batch: Batch::default(),
             gated: Vec::new(),
@@ -311,6 +329,10 @@ struct Ctx<'a> {
     /// Cells smaller than this are traced only where they border the edge
     /// ([`CutSettings::edge_quarters_from`], as a size; 0: none).
     edge_quarters_below: usize,
+    /// Edge quarters of at least this size ([`CutSettings::far_quarters_through`], as a size;
+    /// `usize::MAX`: none) have their cell's other quarters traced where one of them disagrees
+    /// with it.
+    far_quarters_min: usize,
     tracer: &'a Tracer,
     apex: Vec3A,
     n: DVec3,
@@ -361,8 +383,9 @@ pub struct CellNeighbours {
     /// The first leaf of each cell of `list`, beside it: the marking reads the neighbours' scratch
     /// keys without loading their tree nodes.
     firsts: Vec<u32>,
-    /// Per tree node that is a cell at a size below `cell_leaves`, the first leaf of the cell four
-    /// times its size that holds it ([`NO_CELL`] elsewhere).
+    /// Per tree node that is a cell at a size below `cell_leaves`, the cell four times its size
+    /// that holds it ([`NO_CELL`] elsewhere), and that cell's first leaf.
+    parent: Vec<u32>,
     parent_first: Vec<u32>,
     /// Per tree node that is a cell with a parent, which of its parent's neighbours its own
     /// neighbours lie in: bit j for the parent's j-th ([`CellNeighbours::of`]; the 32nd on in bit
@@ -376,6 +399,7 @@ static NO_NEIGHBOURS: CellNeighbours = CellNeighbours {
     offsets: Vec::new(),
     list: Vec::new(),
     firsts: Vec::new(),
+    parent: Vec::new(),
     parent_first: Vec::new(),
     quarter_masks: Vec::new(),
 };
@@ -492,6 +516,7 @@ impl CellNeighbours {
             offsets,
             list,
             firsts,
+            parent,
             parent_first,
             quarter_masks,
         }
@@ -1042,6 +1067,10 @@ fn start_vertex<'a>(
             0 => 0,
             l => settings.cell_leaves.max(1) >> (2 * (l - 1)).min(31),
         },
+        far_quarters_min: match settings.far_quarters_through {
+            0 => usize::MAX,
+            l => (settings.cell_leaves.max(1) >> (2 * l).min(31)).max(1),
+        },
         tracer,
         apex: apex.as_vec3().into(),
         n: normal,
@@ -1415,6 +1444,43 @@ fn trace_marked(ctx: &mut Ctx, cell: usize) {
         }
     }
     trace_batch(ctx, cells);
+    if !ctx.scratch.held.is_empty() {
+        trace_far_quarters(ctx, cell);
+    }
+}
+
+/// [`CutSettings::far_quarters_through`], after a level's edge quarters are traced: the quarters
+/// held back ([`CutScratch::held`]) of each cell (of `cell` leaves) whose traced quarters include
+/// one of the other visibility are traced too.
+fn trace_far_quarters(ctx: &mut Ctx, cell: usize) {
+    let (base, neighbours) = (ctx.key(0, cell), ctx.neighbours);
+    let s = &mut *ctx.scratch;
+    // The cells whose edge quarters disagree with them: the quarters just traced are the batch's.
+    let mut crossed = std::mem::take(&mut s.crossed);
+    crossed.clear();
+    for &(k, _, key) in &s.batch.cells {
+        let a = base + neighbours.parent_first[k as usize] as usize;
+        if s.visibility(a) != s.visibility(key as usize) {
+            crossed.push(a as u32);
+        }
+    }
+    crossed.sort_unstable();
+    crossed.dedup();
+    let held = std::mem::take(&mut s.held);
+    let mut cells = take_batch(ctx);
+    for &(k, c, key, a) in &held {
+        if crossed.binary_search(&a).is_ok() {
+            let node = &ctx.tree.nodes()[k as usize];
+            let w = node_weight(ctx, k as usize, node.above(ctx.n).1);
+            cells.cells.push((k, c, key));
+            cells.dirs.push(node.mean_direction.as_vec3().into());
+            cells.weights.push(w);
+        }
+    }
+    let s = &mut *ctx.scratch;
+    (s.held, s.crossed) = (held, crossed);
+    s.held.clear();
+    trace_batch(ctx, cells);
 }
 
 /// The quarters of the cells of the first level that [`mark_boundaries`] marked, where the pass
@@ -1464,6 +1530,12 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
         if w > 0.0 && !ctx.scratch.known(key) {
             if let Some(v) = inherited(ctx, k, cell) {
                 ctx.scratch.set(key, v);
+                if cell >= ctx.far_quarters_min {
+                    let a = ctx.key(ctx.neighbours.parent_first[k], cell * 4) as u32;
+                    ctx.scratch
+                        .held
+                        .push((k as u32, cell as u32, key as u32, a));
+                }
                 return;
             }
             out.cells.push((k as u32, cell as u32, key as u32));
@@ -1571,7 +1643,9 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
         s.set(key, true);
         return true;
     }
-    if let Some(v) = inherited(ctx, k, cell) {
+    if let Some(v) = inherited(ctx, k, cell)
+        && (cell < ctx.far_quarters_min || !edge_quarter_differs(ctx, k, cell, v))
+    {
         ctx.scratch.set(key, v);
         return v;
     }
@@ -1583,6 +1657,35 @@ fn cell_visible(ctx: &mut Ctx, k: usize, cell: usize, node: &crate::sphere::Tree
     ctx.rays += 1;
     s.set(key, visible);
     visible
+}
+
+/// [`CutSettings::far_quarters_through`] where the cut is rebuilt whole after every level (its
+/// reference, [`CutSettings::rebuild_whole_passes`]): whether an edge quarter (of `cell` leaves,
+/// above the horizon, with cosine mass) of the cell that holds quarter `k` has a visibility other
+/// than the cell's `v`; they are traced as needed, as [`trace_marked`] traces them before
+/// [`trace_far_quarters`] looks.
+fn edge_quarter_differs(ctx: &mut Ctx, k: usize, cell: usize, v: bool) -> bool {
+    let tree = ctx.tree;
+    let mut stack = vec![ctx.neighbours.parent[k] as usize];
+    while let Some(q) = stack.pop() {
+        let node = &tree.nodes()[q];
+        let (up, wholly_above) = node.above(ctx.n);
+        if !up {
+            continue;
+        }
+        if !node.is_leaf() && node.count as usize > cell {
+            stack.extend([node.right as usize, node.left as usize]);
+            continue;
+        }
+        if q != k
+            && node_weight(ctx, q, wholly_above) > 0.0
+            && inherited(ctx, q, cell).is_none()
+            && cell_visible(ctx, q, cell, node) != v
+        {
+            return true;
+        }
+    }
+    false
 }
 
 #[cfg(test)]

@@ -352,25 +352,31 @@ fn boundary_refinement_resolves_shadow_edges_for_a_fraction_of_the_rays() {
     }
 }
 
-/// Edge quarters (`CutSettings::edge_quarters_from`): from the second boundary level on, a marked
-/// cell is traced again only at the quarters beside the cell of the other visibility that marked
-/// it, under a lower light budget. Against a ray per direction (400 vertices, weighted by the map's
-/// luminance), over three meshes under the studio map with cells and levels fixed: fewer rays than
-/// every quarter traced at the former budget (0.002), and no more error. Edge quarters from the
-/// first level instead, at the same budget, lose more than they save: more error than from the
-/// second.
+/// Edge quarters (`CutSettings::edge_quarters_from`, `far_quarters_through`): a marked cell is
+/// traced again only at the quarters beside the cell of the other visibility that marked it, and at
+/// the first level at its other quarters too where one of those disagrees with it; under a lower
+/// light budget. Against a ray per direction (400 vertices, weighted by the map's luminance), over
+/// three meshes under the studio map with cells and levels fixed: a fifth fewer rays than every
+/// quarter traced at the former budget (0.002), and no more error. Without the first level's other
+/// quarters, more error.
 #[test]
 fn edge_quarters_trace_fewer_rays_for_no_more_error() {
     let studio = glint::env::load(&common::assets().join("hdr/small/studio_512.exr")).unwrap();
+    let default = CutSettings::default();
+    assert_eq!(
+        (default.edge_quarters_from, default.far_quarters_through),
+        (1, 1)
+    );
     for mesh in ["glb/bunny.glb", "glb/teapot.glb", "glb/suzanne.glb"] {
         let scene = glint::scene::import(&common::assets().join(mesh)).unwrap();
-        let bake = |from: u32, budget: f64| {
+        let bake = |from: u32, far: u32, budget: f64| {
             let mut settings = BakeSettings {
                 cell_deg: Some(11.25),
                 boundary_levels: Some(3),
                 ..BakeSettings::default()
             };
             settings.cut.edge_quarters_from = from;
+            settings.cut.far_quarters_through = far;
             settings.cut.boundary_budget = budget;
             let baker = Baker::new(&scene, &studio, settings).unwrap();
             let bake = baker.bake_refined(None, &|_| {});
@@ -384,27 +390,25 @@ fn edge_quarters_trace_fewer_rays_for_no_more_error() {
             }
             (bake.stats.rays_traced, error / total)
         };
-        let default = CutSettings::default();
-        assert_eq!(default.edge_quarters_from, 2);
-        let every = bake(0, 0.002);
-        let edge = bake(default.edge_quarters_from, default.boundary_budget);
-        let first = bake(1, default.boundary_budget);
+        let every = bake(0, 0, 0.002);
+        let edge = bake(1, 1, default.boundary_budget);
+        let near = bake(1, 0, default.boundary_budget);
         println!(
-            "{mesh}: every quarter (β 0.002) {} rays, error {:.3} %; edge quarters from level 2 (β {}) {} rays, {:.3} %; from level 1 {} rays, {:.3} %",
+            "{mesh}: every quarter (β 0.002) {} rays, error {:.3} %; edge quarters (β {}) {} rays, {:.3} %; without the first level's others {} rays, {:.3} %",
             every.0,
             100.0 * every.1,
             default.boundary_budget,
             edge.0,
             100.0 * edge.1,
-            first.0,
-            100.0 * first.1
+            near.0,
+            100.0 * near.1
         );
         assert!(
-            edge.0 * 10 < every.0 * 9,
+            edge.0 * 5 < every.0 * 4,
             "{mesh}: {edge:?} against {every:?}"
         );
         assert!(edge.1 <= every.1, "{mesh}: {edge:?} against {every:?}");
-        assert!(first.1 > edge.1, "{mesh}: {first:?} against {edge:?}");
+        assert!(near.1 > edge.1, "{mesh}: {near:?} against {edge:?}");
     }
 }
 
