@@ -127,7 +127,7 @@ pub struct CutSettings {
     /// at the quarters that border a cell of its size whose ray disagrees with its own (the side
     /// the shadow edge that marked it lies on); its other quarters take its visibility without a
     /// ray, unless [`CutSettings::far_quarters_through`] has them traced. With it through the
-    /// first level and [`CutSettings::boundary_budget`] lowered to match, the bakes cast 24–33 %
+    /// first level and [`CutSettings::boundary_budget`] lowered to match, the bakes cast 22–33 %
     /// fewer rays than tracing every quarter, with less error against a ray per direction, on
     /// every mesh and map of `cargo bench --bench bake -- matrix` that refines shadow edges
     /// (docs/benchmarks.md).
