@@ -609,9 +609,7 @@ fn cell_bits(
     let nodes = tree.nodes();
     let mut e = 0usize;
     for (i, &(_, first, end)) in cells.iter().enumerate() {
-        let known = if let Some(visible) = scratch.visibility(first as usize) {
-            Some(visible)
-        } else {
+        let known = scratch.visibility(first as usize).or_else(|| {
             while e < entries.len()
                 && nodes[entries[e].0 as usize].first + nodes[entries[e].0 as usize].count <= first
             {
@@ -627,7 +625,7 @@ fn cell_bits(
                     _ => None,
                 }
             })
-        };
+        });
         if let Some(visible) = known {
             bits[i / 64][0] |= 1 << (i % 64);
             if visible {
@@ -1108,6 +1106,16 @@ impl Ctx<'_> {
         let level = ((self.cell_leaves / cell.max(1)).max(1).trailing_zeros() / 2) as usize;
         level * self.tree.leaf_count() + first as usize
     }
+
+    /// Scratch key of the cell four times the size of cell `k` (of `cell` leaves) that holds it
+    /// ([`CellNeighbours::parent_first`]; `None` for a cell with no parent).
+    #[inline]
+    fn parent_key(&self, k: usize, cell: usize) -> Option<usize> {
+        match *self.neighbours.parent_first.get(k)? {
+            NO_CELL => None,
+            first => Some(self.key(first, cell * 4)),
+        }
+    }
 }
 
 /// Σ_i Ω_i c_i over the node's leaves, with Ω_i c_i = max(moment_i·n, 0) (exact for a leaf wholly
@@ -1445,28 +1453,28 @@ fn trace_marked(ctx: &mut Ctx, cell: usize) {
     }
     trace_batch(ctx, cells);
     if !ctx.scratch.held.is_empty() {
-        trace_far_quarters(ctx, cell);
+        trace_far_quarters(ctx);
     }
 }
 
 /// [`CutSettings::far_quarters_through`], after a level's edge quarters are traced: the quarters
-/// held back ([`CutScratch::held`]) of each cell (of `cell` leaves) whose traced quarters include
-/// one of the other visibility are traced too.
-fn trace_far_quarters(ctx: &mut Ctx, cell: usize) {
-    let (base, neighbours) = (ctx.key(0, cell), ctx.neighbours);
-    let s = &mut *ctx.scratch;
+/// held back ([`CutScratch::held`]) of each cell whose traced quarters include one of the other
+/// visibility are traced too.
+fn trace_far_quarters(ctx: &mut Ctx) {
     // The cells whose edge quarters disagree with them: the quarters just traced are the batch's.
-    let mut crossed = std::mem::take(&mut s.crossed);
+    let mut crossed = std::mem::take(&mut ctx.scratch.crossed);
     crossed.clear();
-    for &(k, _, key) in &s.batch.cells {
-        let a = base + neighbours.parent_first[k as usize] as usize;
-        if s.visibility(a) != s.visibility(key as usize) {
+    let s = &*ctx.scratch;
+    for &(k, c, key) in &s.batch.cells {
+        if let Some(a) = ctx.parent_key(k as usize, c as usize)
+            && s.visibility(a) != s.visibility(key as usize)
+        {
             crossed.push(a as u32);
         }
     }
     crossed.sort_unstable();
     crossed.dedup();
-    let held = std::mem::take(&mut s.held);
+    let held = std::mem::take(&mut ctx.scratch.held);
     let mut cells = take_batch(ctx);
     for &(k, c, key, a) in &held {
         if crossed.binary_search(&a).is_ok() {
@@ -1530,11 +1538,12 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
         if w > 0.0 && !ctx.scratch.known(key) {
             if let Some(v) = inherited(ctx, k, cell) {
                 ctx.scratch.set(key, v);
-                if cell >= ctx.far_quarters_min {
-                    let a = ctx.key(ctx.neighbours.parent_first[k], cell * 4) as u32;
+                if cell >= ctx.far_quarters_min
+                    && let Some(a) = ctx.parent_key(k, cell)
+                {
                     ctx.scratch
                         .held
-                        .push((k as u32, cell as u32, key as u32, a));
+                        .push((k as u32, cell as u32, key as u32, a as u32));
                 }
                 return;
             }
@@ -1560,11 +1569,7 @@ fn inherited(ctx: &Ctx, k: usize, cell: usize) -> Option<bool> {
     if cell >= ctx.edge_quarters_below {
         return None;
     }
-    let a_first = *ctx.neighbours.parent_first.get(k)?;
-    if a_first == NO_CELL {
-        return None;
-    }
-    let a = ctx.key(a_first as usize as u32, cell * 4);
+    let a = ctx.parent_key(k, cell)?;
     let s = &*ctx.scratch;
     let v = s.visibility(a)?;
     let near = s.edge_masks[a] & ctx.neighbours.quarter_masks[k] != 0;
