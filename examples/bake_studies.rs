@@ -18,11 +18,12 @@
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
 //!
-//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE] ...]`: whole bakes (`Baker::new` and
+//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH]] ...]`: whole bakes (`Baker::new` and
 //! `bake_refined`, as `glint bake` makes them) with the visibility cell size in degrees, the
 //! boundary levels, the light budget β and the first level of edge quarters
-//! (`CutSettings::edge_quarters_from`, 0: every quarter traced) given (`-` or leaving EDGE out
-//! leaves one to the default or the decisions),
+//! (`CutSettings::edge_quarters_from`, 0: every quarter traced) and vertex sampling's reach for
+//! taking cells (`RefineSettings::take_reach`, a fraction of the diagonal) given (`-` or leaving
+//! EDGE or REACH out leaves one to the default or the decisions),
 //! the default bake first: the rays, the bake's CPU and wall seconds after the decisions, and the
 //! visibility error at 400 imported vertices against a ray per direction, weighted by solid angle
 //! × cosine × the map's luminance (`tests/it/common.rs`'s `visibility_error`, as the million's is
@@ -314,10 +315,13 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
     println!("|---|---|---|---|---|---|---|---|");
     for variant in std::iter::once("-/-/-").chain(variants.iter().copied()) {
         let parts: Vec<&str> = variant.split('/').collect();
-        let (cell, levels, budget, edge) = match parts[..] {
-            [cell, levels, budget] => (cell, levels, budget, "-"),
-            [cell, levels, budget, edge] => (cell, levels, budget, edge),
-            _ => anyhow::bail!("{variant}: expected CELL/LEVELS/BUDGET[/EDGE], each a number or -"),
+        let (cell, levels, budget, edge, reach) = match parts[..] {
+            [cell, levels, budget] => (cell, levels, budget, "-", "-"),
+            [cell, levels, budget, edge] => (cell, levels, budget, edge, "-"),
+            [cell, levels, budget, edge, reach] => (cell, levels, budget, edge, reach),
+            _ => anyhow::bail!(
+                "{variant}: expected CELL/LEVELS/BUDGET[/EDGE[/REACH]], each a number or -"
+            ),
         };
         let mut settings = BakeSettings::default();
         if cell != "-" {
@@ -331,6 +335,9 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
         }
         if edge != "-" {
             settings.cut.edge_quarters_from = edge.parse()?;
+        }
+        if reach != "-" {
+            settings.refine.take_reach = reach.parse()?;
         }
         let baker = Baker::new(&scene, &env, settings)?;
         let (c0, t0) = (cpu_seconds(), std::time::Instant::now());
@@ -364,7 +371,7 @@ fn main() -> anyhow::Result<()> {
         ["edge_schemes", mesh, map, probes] => edge_schemes(mesh, map, probes.parse()?),
         ["budget_levels", mesh, map, ref variants @ ..] => budget_levels(mesh, map, variants),
         _ => anyhow::bail!(
-            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET ...]"
+            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH]] ...]"
         ),
     }
 }

@@ -249,6 +249,12 @@ impl<'a> Baker<'a> {
                 settings.cut.epsilon
             )));
         }
+        let reach = settings.refine.take_reach;
+        if !(reach >= 0.0 && reach.is_finite()) {
+            return Err(BakeError::Settings(format!(
+                "the reach for taking neighbours' cells must be finite and >= 0, not {reach}"
+            )));
+        }
         if let Some(deg) = settings.cell_deg.filter(|d| !(*d >= 0.0 && d.is_finite())) {
             return Err(BakeError::Settings(format!(
                 "the visibility cell size must be finite and >= 0 degrees, not {deg}"
@@ -452,12 +458,13 @@ impl<'a> Baker<'a> {
         let sampled = self.sampled.iter().filter(|&&s| s).count();
         let top = self.levels.top_count();
         format!(
-            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with short edges taking from their sampled neighbours every visibility cell they agree on); the sampled ones in levels, {top} at the top traced whole, each other taking the cells its sampled neighbours of the level above agree on where they lie within {:.4} of the diagonal of it",
+            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with edges within {:.4} of the diagonal taking from their sampled neighbours every visibility cell they agree on); the sampled ones in levels, {top} at the top traced whole, each other taking the cells its sampled neighbours of the level above agree on where they lie within {:.4} of the diagonal of it",
             self.settings.refine.min_edge,
             self.settings.refine.threshold,
             sparse::MAX_NORMAL_DEG,
             n - sampled - interpolated,
-            self.settings.refine.min_edge,
+            self.settings.refine.take_reach,
+            self.settings.refine.take_reach,
         )
     }
 
@@ -764,6 +771,8 @@ impl<'a> Baker<'a> {
         // from (rule 5); each recording what it knows of every visibility cell, for the vertices
         // traced after it.
         let max_edge = self.settings.refine.min_edge * self.scene.bounds.diagonal() as f64;
+        // Rules 4 and 5 take cells within their own reach; rule 2 interpolates within `min_edge`.
+        let reach = self.settings.refine.take_reach * self.scene.bounds.diagonal() as f64;
         let mut by_level: Vec<Vec<(u32, Option<Vec<u32>>)>> = Vec::new();
         let mut queue = first;
         while !queue.is_empty() {
@@ -775,7 +784,7 @@ impl<'a> Baker<'a> {
                         &self.positions,
                         &self.normals,
                         &self.vertex_neighbours,
-                        max_edge,
+                        reach,
                     )
                 })
                 .collect();
@@ -894,7 +903,7 @@ impl<'a> Baker<'a> {
                     &self.normals,
                     &self.vertex_neighbours,
                     &self.sampled,
-                    max_edge,
+                    reach,
                 )
             })
             .collect();

@@ -41,10 +41,21 @@ pub struct RefineSettings {
     /// instead of traced.
     #[serde(default = "interpolate_default")]
     pub interpolate: bool,
+    /// Vertex sampling's reach for taking cells ([`super::sparse`] rules 4 and 5), a fraction of
+    /// the bounding-box diagonal: a traced vertex whose edges are all at most this long takes
+    /// every visibility cell that its traced neighbours (or the level above's, each within this
+    /// distance) know alike, instead of casting its own rays there. Interpolation (rule 2) keeps
+    /// `min_edge`.
+    #[serde(default = "take_reach_default")]
+    pub take_reach: f64,
 }
 
 fn interpolate_default() -> bool {
     true
+}
+
+fn take_reach_default() -> f64 {
+    RefineSettings::default().take_reach
 }
 
 impl Default for RefineSettings {
@@ -54,6 +65,7 @@ impl Default for RefineSettings {
             threshold: 0.02,
             min_edge: 1.0 / 128.0,
             interpolate: true,
+            take_reach: 1.0 / 128.0,
         }
     }
 }

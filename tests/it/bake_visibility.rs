@@ -516,7 +516,8 @@ fn the_light_budget_bounds_what_boundary_refinement_leaves_coarse() {
     );
 }
 
-/// An explicit cell size is used as given and a bad one is refused in one line.
+/// An explicit cell size is used as given, and a bad one, or a bad reach for taking neighbours'
+/// cells, is refused in one line.
 #[test]
 fn explicit_and_invalid_cell_sizes() {
     let scene = glint::scene::import(&common::assets().join("glb/teapot.glb")).unwrap();
@@ -550,6 +551,14 @@ fn explicit_and_invalid_cell_sizes() {
         .expect("refused")
         .to_string();
         assert!(err.contains("cell") && !err.contains('\n'), "{err}");
+        // A NaN reach would let every vertex take its neighbours' cells, however far they are.
+        let mut settings = BakeSettings::default();
+        settings.refine.take_reach = bad;
+        let err = Baker::new(&scene, &env, settings)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(err.contains("reach") && !err.contains('\n'), "{err}");
     }
 }
 
