@@ -458,13 +458,12 @@ impl<'a> Baker<'a> {
         let sampled = self.sampled.iter().filter(|&&s| s).count();
         let top = self.levels.top_count();
         format!(
-            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with edges within {:.4} of the diagonal taking from their sampled neighbours every visibility cell they agree on); the sampled ones in levels, {top} at the top traced whole, each other taking the cells its sampled neighbours of the level above agree on where they lie within {:.4} of the diagonal of it",
+            "{interpolated} of {n} vertices interpolated from traced neighbours: edges shorter than {:.4} of the diagonal, neighbours' visibility within {} of the irradiance of each other, normals within {}°; {sampled} sampled vertices (every other vertex's neighbour) and {} others traced (those with edges within {reach:.4} of the diagonal taking from their sampled neighbours every visibility cell they agree on); the sampled ones in levels, {top} at the top traced whole, each other taking the cells its sampled neighbours of the level above agree on where they lie within {reach:.4} of the diagonal of it",
             self.settings.refine.min_edge,
             self.settings.refine.threshold,
             sparse::MAX_NORMAL_DEG,
             n - sampled - interpolated,
-            self.settings.refine.take_reach,
-            self.settings.refine.take_reach,
+            reach = self.settings.refine.take_reach,
         )
     }
 
