@@ -18,12 +18,13 @@
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
 //!
-//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH]] ...]`: whole bakes (`Baker::new` and
-//! `bake_refined`, as `glint bake` makes them) with the visibility cell size in degrees, the
-//! boundary levels, the light budget β and the first level of edge quarters
-//! (`CutSettings::edge_quarters_from`, 0: every quarter traced) and vertex sampling's reach for
-//! taking cells (`RefineSettings::take_reach`, a fraction of the diagonal) given (`-` or leaving
-//! EDGE or REACH out leaves one to the default or the decisions),
+//! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]] ...]`: whole bakes
+//! (`Baker::new` and `bake_refined`, as `glint bake` makes them) with the visibility cell size in
+//! degrees, the boundary levels, the light budget β, the first level of edge quarters
+//! (`CutSettings::edge_quarters_from`, 0: every quarter traced), vertex sampling's reach for
+//! taking cells (`RefineSettings::take_reach`, a fraction of the diagonal), the direction set's
+//! resolution (per cube-face side) and `CutSettings::trace_leaves` given (`-` or leaving a field
+//! out leaves it to the default or the decisions),
 //! the default bake first: the rays, the bake's CPU and wall seconds after the decisions, and the
 //! visibility error at 400 imported vertices against a ray per direction, weighted by solid angle
 //! × cosine × the map's luminance (`tests/it/common.rs`'s `visibility_error`, as the million's is
@@ -315,14 +316,21 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
     println!("|---|---|---|---|---|---|---|---|");
     for variant in std::iter::once("-/-/-").chain(variants.iter().copied()) {
         let parts: Vec<&str> = variant.split('/').collect();
-        let (cell, levels, budget, edge, reach) = match parts[..] {
-            [cell, levels, budget] => (cell, levels, budget, "-", "-"),
-            [cell, levels, budget, edge] => (cell, levels, budget, edge, "-"),
-            [cell, levels, budget, edge, reach] => (cell, levels, budget, edge, reach),
-            _ => anyhow::bail!(
-                "{variant}: expected CELL/LEVELS/BUDGET[/EDGE[/REACH]], each a number or -"
-            ),
-        };
+        if !(3..=7).contains(&parts.len()) {
+            anyhow::bail!(
+                "{variant}: expected CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]], each a number or -"
+            );
+        }
+        let field = |i: usize| parts.get(i).copied().unwrap_or("-");
+        let (cell, levels, budget, edge, reach, res, trace) = (
+            field(0),
+            field(1),
+            field(2),
+            field(3),
+            field(4),
+            field(5),
+            field(6),
+        );
         let mut settings = BakeSettings::default();
         if cell != "-" {
             settings.cell_deg = Some(cell.parse()?);
@@ -338,6 +346,12 @@ fn budget_levels(mesh: &str, map: &str, variants: &[&str]) -> anyhow::Result<()>
         }
         if reach != "-" {
             settings.refine.take_reach = reach.parse()?;
+        }
+        if res != "-" {
+            settings.resolution = Some(res.parse()?);
+        }
+        if trace != "-" {
+            settings.cut.trace_leaves = trace.parse()?;
         }
         let baker = Baker::new(&scene, &env, settings)?;
         let (c0, t0) = (cpu_seconds(), std::time::Instant::now());
@@ -371,7 +385,7 @@ fn main() -> anyhow::Result<()> {
         ["edge_schemes", mesh, map, probes] => edge_schemes(mesh, map, probes.parse()?),
         ["budget_levels", mesh, map, ref variants @ ..] => budget_levels(mesh, map, variants),
         _ => anyhow::bail!(
-            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH]] ...]"
+            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]] ...]"
         ),
     }
 }

@@ -81,12 +81,14 @@ pub struct CutSettings {
     pub epsilon: f64,
     /// Cap on the number of nodes in one vertex's cut.
     pub max_cut: usize,
-    /// Nodes with at most this many leaves are ray traced cell by cell when their cone is not free.
-    /// The default, 12288, is half of a 64-per-side set's 24576 leaves: the cone test is made on
-    /// the root (a vertex's whole upper hemisphere) and not on the quarter- and eighth-spheres
-    /// below it, whose tests cost more than the rays they save on a detailed mesh (release build,
-    /// `glint bake --json`: dragon_100k under courtyard 5.5 % faster than with 4096, with 4.5 %
-    /// more rays; the bunny and the teapot under studio 1 % slower).
+    /// Nodes with at most this many leaves are ray traced cell by cell when their cone is not free
+    /// (0, the default: half the tree's leaves, whatever the resolution). Then the cone test is
+    /// made on the root (a vertex's whole upper hemisphere) and not on the quarter- and
+    /// eighth-spheres below it, whose tests cost more than the rays they save on a detailed mesh
+    /// (release build, `glint bake --json`, 64 directions a side: dragon_100k under courtyard 5.5 %
+    /// faster than with 4096, with 4.5 % more rays; the bunny and the teapot under studio 1 %
+    /// slower; at 128 a side, dragon_100k under interior_1k 7 % less CPU than with 12288, with
+    /// 1.6 % more rays: docs/benchmarks.md).
     pub trace_leaves: usize,
     /// Visibility resolution: nodes with at most this many leaves are visibility cells, traced with
     /// one ray along their mean direction (1 = every leaf direction is traced). Light and BRDF
@@ -146,7 +148,7 @@ impl Default for CutSettings {
         Self {
             epsilon: 0.02,
             max_cut: 1024,
-            trace_leaves: 12288,
+            trace_leaves: 0,
             cell_leaves: 4,
             ray_offset: 1e-4,
             boundary_levels: 0,
@@ -376,7 +378,7 @@ struct Ctx<'a> {
 /// one of the refined sizes (`cell_leaves`, a quarter of it, …) or the quarters of the last, the
 /// cells of the same size whose leaves touch its leaves in the cube map's 8-neighbourhood (across
 /// face edges too), and the cell four times its size that holds it.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct CellNeighbours {
     offsets: Vec<u32>,
     list: Vec<u32>,
@@ -1073,7 +1075,12 @@ fn start_vertex<'a>(
         apex: apex.as_vec3().into(),
         n: normal,
         nf: normal.as_vec3().into(),
-        trace_leaves: settings.trace_leaves.max(settings.cell_leaves).max(1),
+        trace_leaves: match settings.trace_leaves {
+            0 => tree.leaf_count() / 2,
+            t => t,
+        }
+        .max(settings.cell_leaves)
+        .max(1),
         cone_leaves: settings.cone_leaves,
         batched_end: 0,
         cell_leaves: settings.cell_leaves.max(1),

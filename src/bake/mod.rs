@@ -304,7 +304,7 @@ impl<'a> Baker<'a> {
         // sampling set (f) need nothing of it: side by side.
         let interpolate = trace_visibility && settings.refine.interpolate;
         let (
-            ((cell_deg, cell_reason, cell_decision), ring),
+            ((cell_deg, cell_reason, mut cell_decision), ring),
             ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled, levels)),
         ) = rayon::join(
             || {
@@ -387,7 +387,14 @@ impl<'a> Baker<'a> {
         settings.cut.boundary_levels = boundary_levels;
         settings.boundary_levels = Some(boundary_levels);
         settings.cell_deg = Some(cell_deg);
-        let cell_neighbours = if trace_visibility {
+        let decided_neighbours = cell_decision.as_mut().and_then(|d| {
+            let same = d.levels == boundary_levels
+                && decisions::cell_leaves(resolution, d.deg) == settings.cut.cell_leaves;
+            same.then(|| std::mem::take(&mut d.neighbours))
+        });
+        let cell_neighbours = if let Some(decided) = decided_neighbours {
+            decided
+        } else if trace_visibility {
             cuts::CellNeighbours::new(
                 &set,
                 &tree,

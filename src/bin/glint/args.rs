@@ -214,7 +214,8 @@ pub struct BakeArgs {
     /// most this fraction of a vertex's irradiance (0: refine every shadow-edge cell).
     #[arg(long, default_value_t = glint::bake::CutSettings::default().boundary_budget)]
     pub boundary_budget: f64,
-    /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested.
+    /// Nodes with at most this many leaves are traced cell by cell instead of cone-tested (0: half
+    /// the direction set's leaves).
     #[arg(long, default_value_t = glint::bake::CutSettings::default().trace_leaves)]
     pub trace_leaves: usize,
     /// Rounds of adaptive refinement: edges whose ends' visibility differs are split and the new
