@@ -783,6 +783,7 @@ mod tests {
             levels,
             reason: String::new(),
             errors: errors.to_vec(),
+            neighbours: CellNeighbours::default(),
         }
     }
 
