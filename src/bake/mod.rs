@@ -387,11 +387,11 @@ impl<'a> Baker<'a> {
         settings.cut.boundary_levels = boundary_levels;
         settings.boundary_levels = Some(boundary_levels);
         settings.cell_deg = Some(cell_deg);
-        let decided_neighbours = cell_decision.as_mut().and_then(|d| {
-            let same = d.levels == boundary_levels
-                && decisions::cell_leaves(resolution, d.deg) == settings.cut.cell_leaves;
-            same.then(|| std::mem::take(&mut d.neighbours))
-        });
+        // A decided cell size is `cell_deg`; only explicit boundary levels can differ from (d)'s.
+        let decided_neighbours = cell_decision
+            .as_mut()
+            .filter(|d| d.levels == boundary_levels)
+            .map(|d| std::mem::take(&mut d.neighbours));
         let cell_neighbours = if let Some(decided) = decided_neighbours {
             decided
         } else if trace_visibility {
