@@ -484,10 +484,10 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) -> any
         None => "",
     };
     println!(
-        "| mesh | map |{baseline} bake (s), median of 3 | deciding (s) | imported vertices | baked vertices | rays | rays/s |"
+        "| mesh | map |{baseline} bake (s), median of 3 | deciding (s) | stages (s): sampled / interpolated / traced / refinement | imported vertices | baked vertices | rays | rays/s |"
     );
     println!(
-        "|---|---|{}---|---|---|---|---|---|",
+        "|---|---|{}---|---|---|---|---|---|---|",
         if baseline.is_empty() { "" } else { "---|" }
     );
     for &mesh in meshes {
@@ -552,9 +552,22 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) -> any
                 (Some(_), _) => format!(" {base_secs:.2} |"),
                 (None, _) => String::new(),
             };
+            // The stages' seconds (`BakeStats::stages`), the refinement's rounds together.
+            let stage = |prefix: &str| -> f64 {
+                stats
+                    .stages
+                    .iter()
+                    .filter(|s| s.stage.starts_with(prefix))
+                    .map(|s| s.seconds)
+                    .sum()
+            };
             println!(
-                "| {mesh} | {map} |{base} {secs:.2} | {:.2} | {} | {} | {:.1} M | {:.2} M |",
+                "| {mesh} | {map} |{base} {secs:.2} | {:.2} | {:.2} / {:.2} / {:.2} / {:.2} | {} | {} | {:.1} M | {:.2} M |",
                 stats.decision_seconds,
+                stage("sampled"),
+                stage("interpolated"),
+                stage("traced"),
+                stage("refinement"),
                 scene.mesh.positions.len(),
                 stats.vertices,
                 stats.rays_traced as f64 / 1e6,

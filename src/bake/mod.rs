@@ -156,6 +156,45 @@ pub struct BakeStats {
     /// recorded).
     #[serde(default)]
     pub tracer: String,
+    /// Where the time after the decisions went, stage by stage in the order they ran (empty in
+    /// bakes written before it was recorded). What they leave of `seconds − decision_seconds` is
+    /// the refinement's setup, a last check that splits nothing, and the final bookkeeping.
+    #[serde(default)]
+    pub stages: Vec<BakeStage>,
+}
+
+/// One stage of a bake after its decisions ([`BakeStats::stages`]): the vertices it finished, the
+/// rays it cast and its wall-clock seconds, summed over [`Baker::bake_set`]'s calls.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct BakeStage {
+    /// `sampled` (vertex sampling's sampled vertices, level by level, [`sparse::Levels`]),
+    /// `interpolated` (rule 2 of [`sparse`], no rays), `traced` (the others; every vertex where
+    /// vertex sampling is off), `refinement round R` (the edges judged and the new vertices
+    /// baked, decision (e)).
+    pub stage: String,
+    pub vertices: usize,
+    pub rays: u64,
+    pub seconds: f64,
+}
+
+impl BakeStage {
+    /// The stages as one line for people, e.g. `sampled: 13334 vertices, 8.0 M rays, 1.44 s; …`.
+    pub fn summary(stages: &[BakeStage]) -> String {
+        stages
+            .iter()
+            .map(|s| {
+                let rays = match s.rays {
+                    0 => "no rays".to_string(),
+                    r => format!("{:.1} M rays", r as f64 * 1e-6),
+                };
+                format!(
+                    "{}: {} vertices, {rays}, {:.2} s",
+                    s.stage, s.vertices, s.seconds
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
 }
 
 /// A finished bake.
@@ -741,6 +780,8 @@ impl<'a> Baker<'a> {
             .copied()
             .filter(|&v| (v as usize) < n && !state.baked[v as usize])
             .collect();
+        let stage = std::time::Instant::now();
+        let rays_before = state.rays();
         if self.sampled.len() != n {
             self.bake_points(
                 &self.points_of(&todo),
@@ -754,6 +795,7 @@ impl<'a> Baker<'a> {
                     state.store_many(&ids, cuts);
                 },
             );
+            state.add_stage("traced", todo.len(), rays_before, stage);
             return;
         }
         // 1. The sampled vertices: those of `todo`, then the sampled neighbours of the others.
@@ -811,6 +853,7 @@ impl<'a> Baker<'a> {
             queue = above;
         }
         let mut finished = 0;
+        let sampled_count = by_level.iter().map(Vec::len).sum();
         for list in by_level.into_iter().rev() {
             let (vertices, anchors): (Vec<u32>, Vec<Option<Vec<u32>>>) = list.into_iter().unzip();
             self.bake_assisted(&vertices, &anchors, true, state, &|k| {
@@ -818,6 +861,8 @@ impl<'a> Baker<'a> {
             });
             finished += vertices.len();
         }
+        state.add_stage("sampled", sampled_count, rays_before, stage);
+        let stage = std::time::Instant::now();
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo
             .iter()
@@ -897,6 +942,9 @@ impl<'a> Baker<'a> {
             state.store_many(&ids, cuts);
         }
         let done = own + interpolated;
+        let rays_before = state.rays();
+        state.add_stage("interpolated", interpolated, rays_before, stage);
+        let stage = std::time::Instant::now();
         progress(done);
         // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
         // visibility (rule 4).
@@ -914,6 +962,7 @@ impl<'a> Baker<'a> {
             })
             .collect();
         self.bake_assisted(&traced, &anchors, false, state, &|k| progress(done + k));
+        state.add_stage("traced", traced.len(), rays_before, stage);
     }
 
     /// Traces `vertices` into `state`, vertex i taking every visibility cell that all of
@@ -1015,7 +1064,9 @@ impl<'a> Baker<'a> {
         // Edges between vertices that were there in an earlier round were judged then, on the same
         // cuts: each round looks only at edges with an end added by the round before.
         let mut since = 0u32;
-        for _ in 0..r.rounds {
+        for round in 1..=r.rounds {
+            let stage = std::time::Instant::now();
+            let rays_before = state.rays();
             let edges = refine::long_edges(&mesh, min_length);
             let marked: Vec<(u32, u32)> = edges
                 .par_iter()
@@ -1070,6 +1121,12 @@ impl<'a> Baker<'a> {
                 let ids: Vec<usize> = batch.iter().map(|&i| first_new + i as usize).collect();
                 state.store_many(&ids, cuts);
             });
+            state.add_stage(
+                &format!("refinement round {round}"),
+                points.len(),
+                rays_before,
+                stage,
+            );
             split_total += parents.len();
             parents_all.extend(parents);
             rounds_done += 1;
@@ -1107,7 +1164,10 @@ impl<'a> Baker<'a> {
         start: std::time::Instant,
     ) -> Bake {
         let PartialBake {
-            mut cuts, records, ..
+            mut cuts,
+            records,
+            stages,
+            ..
         } = state;
         let n = cuts.vertex_count();
         let interpolated = records.iter().filter(|r| r.interpolated).count();
@@ -1137,6 +1197,7 @@ impl<'a> Baker<'a> {
             bytes,
             bytes_per_vertex: bytes as f64 / n.max(1) as f64,
             tracer: self.tracer.backend().name().to_string(),
+            stages,
         };
         Bake {
             settings: self.settings,

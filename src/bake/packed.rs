@@ -226,6 +226,8 @@ pub struct PartialBake {
     /// Sampled vertices' [`VertexCut::cell_bits`], kept for the vertices that take their agreed
     /// cells, in this [`super::Baker::bake_set`] call or a later one; dropped by the refinement.
     pub(super) cell_bits: Vec<Vec<[u64; 2]>>,
+    /// [`super::BakeStats::stages`] so far.
+    pub stages: Vec<super::BakeStage>,
 }
 
 impl PartialBake {
@@ -236,6 +238,40 @@ impl PartialBake {
             baked: vec![false; vertex_count],
             records: vec![VertexRecord::default(); vertex_count],
             cell_bits: Vec::new(),
+            stages: Vec::new(),
+        }
+    }
+
+    /// Rays cast for the vertices baked so far.
+    pub fn rays(&self) -> u64 {
+        self.records.iter().map(|r| r.rays).sum()
+    }
+
+    /// Counts `vertices` finished, the rays cast since `rays_before` ([`PartialBake::rays`]) and
+    /// the seconds since `since` to stage `name` (a stage met before in this bake adds to it).
+    pub fn add_stage(
+        &mut self,
+        name: &str,
+        vertices: usize,
+        rays_before: u64,
+        since: std::time::Instant,
+    ) {
+        let (rays, seconds) = (
+            self.rays().saturating_sub(rays_before),
+            since.elapsed().as_secs_f64(),
+        );
+        match self.stages.iter_mut().find(|s| s.stage == name) {
+            Some(s) => {
+                s.vertices += vertices;
+                s.rays += rays;
+                s.seconds += seconds;
+            }
+            None => self.stages.push(super::BakeStage {
+                stage: name.to_string(),
+                vertices,
+                rays,
+                seconds,
+            }),
         }
     }
 

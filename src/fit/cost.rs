@@ -92,7 +92,8 @@ impl BakeReport<'_> {
             "rays_traced": s.rays_traced, "mean_cut_size": s.mean_cut_size, "max_cut_size": s.max_cut_size,
             "capped_vertices": s.capped_vertices, "seconds": s.seconds, "decision_seconds": s.decision_seconds,
             "rays_per_second": s.rays_traced as f64 / (s.seconds - s.decision_seconds).max(1e-9),
-            "bytes_per_vertex": s.bytes_per_vertex, "tracer": s.tracer, "decisions": self.header.decisions,
+            "bytes_per_vertex": s.bytes_per_vertex, "tracer": s.tracer, "stages": s.stages,
+            "decisions": self.header.decisions,
             "view": {
                 "camera": self.camera.name, "fit_width": self.fit_size.0, "fit_height": self.fit_size.1,
                 "pixels": c.pixels, "lobes": c.lobes,
@@ -121,6 +122,12 @@ impl BakeReport<'_> {
             s.mean_cut_size, s.max_cut_size, s.capped_vertices, s.bytes_per_vertex, s.seconds,
             s.decision_seconds
         ));
+        if !s.stages.is_empty() {
+            lines.push(format!(
+                "stages: {}",
+                crate::bake::BakeStage::summary(&s.stages)
+            ));
+        }
         lines.push(format!(
             "view '{}' at {}x{}: {} pixels, J = {}; light sums {:.3} s, transfer {:.3} s; a rotated environment: \
              {:.3} s (sums + transfer, no rays)",

@@ -50,6 +50,7 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
         "transfer_seconds",
         "bytes_per_vertex",
         "tracer",
+        "stages",
     ] {
         assert!(!first[key].is_null(), "missing key {key}");
     }
@@ -80,6 +81,45 @@ fn bake_is_reused_and_bad_bakes_are_rebuilt() {
     );
     assert_eq!(first["reused"].as_bool(), Some(false));
     assert!(first["rays_traced"].as_u64().unwrap() > 0);
+    // The stages account for every vertex once and every ray, counted apart from the totals (the
+    // vertex records): the imported vertices in sampling's stages, the new ones in the rounds.
+    let stages = first["stages"].as_array().expect("stages");
+    let sum = |pick: &dyn Fn(&serde_json::Value) -> bool, key: &str| -> f64 {
+        stages
+            .iter()
+            .filter(|s| pick(s))
+            .map(|s| s[key].as_f64().unwrap())
+            .sum()
+    };
+    let round = |s: &serde_json::Value| s["stage"].as_str().unwrap().starts_with("refinement");
+    let names: Vec<&str> = stages
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names[..3],
+        ["sampled", "interpolated", "traced"],
+        "{names:?}"
+    );
+    assert_eq!(sum(&|s| !round(s), "vertices"), 529.0, "{stages:?}");
+    assert_eq!(sum(&round, "vertices"), (vertices - 529) as f64);
+    assert_eq!(
+        sum(&|_| true, "rays"),
+        first["rays_traced"].as_f64().unwrap()
+    );
+    assert_eq!(
+        sum(&|s| s["stage"] == "interpolated", "vertices"),
+        first["decisions"]["interpolated_vertices"]
+            .as_f64()
+            .unwrap()
+    );
+    assert_eq!(sum(&|s| s["stage"] == "interpolated", "rays"), 0.0);
+    let after_decisions =
+        first["seconds"].as_f64().unwrap() - first["decision_seconds"].as_f64().unwrap();
+    assert!(
+        sum(&|_| true, "seconds") <= after_decisions,
+        "{stages:?} within {after_decisions} s"
+    );
     let (second, _) = bake_json(&out);
     assert_eq!(second["reused"].as_bool(), Some(true));
     let path = out.join("bake.glint");

@@ -2,8 +2,9 @@
 //! inputs with `RAYON_NUM_THREADS=1` and `=2` must write the same bytes.
 //!
 //! Excluded, because they are documented timings (wall-clock seconds, different on every run even
-//! with one thread): the bake header's `stats.seconds` and `stats.decision_seconds` (`BakeStats`,
-//! in `bake.glint`'s JSON header and in `bake.json`) and the material's `fit.solve_seconds`
+//! with one thread): the bake header's `stats.seconds`, `stats.decision_seconds` and each
+//! `stats.stages[i].seconds` (`BakeStats`, in `bake.glint`'s JSON header and in `bake.json`; the
+//! stages' names, vertices and rays are compared) and the material's `fit.solve_seconds`
 //! (`FitStats`). Everything else is compared exactly: the cut data of `bake.glint` (offsets, nodes,
 //! visibility) byte for byte, the rest of the bake header and `bake.json` as JSON values, and the
 //! material file line by line with only its `"solve_seconds"` line left out. (The bake file's
@@ -52,6 +53,20 @@ fn without_bake_timings(mut header: Value) -> Value {
         assert!(
             stats.remove(key).is_some(),
             "the bake header has no stats.{key}"
+        );
+    }
+    let stages = stats
+        .get_mut("stages")
+        .and_then(Value::as_array_mut)
+        .expect("stats.stages in the bake header");
+    assert!(!stages.is_empty(), "no stages in the bake header");
+    for stage in stages {
+        assert!(
+            stage
+                .as_object_mut()
+                .and_then(|s| s.remove("seconds"))
+                .is_some(),
+            "a stage without seconds: {stage}"
         );
     }
     header
