@@ -780,8 +780,7 @@ impl<'a> Baker<'a> {
             .copied()
             .filter(|&v| (v as usize) < n && !state.baked[v as usize])
             .collect();
-        let stage = std::time::Instant::now();
-        let rays_before = state.rays();
+        let stage = state.start_stage();
         if self.sampled.len() != n {
             self.bake_points(
                 &self.points_of(&todo),
@@ -795,7 +794,7 @@ impl<'a> Baker<'a> {
                     state.store_many(&ids, cuts);
                 },
             );
-            state.add_stage("traced", todo.len(), rays_before, stage);
+            state.end_stage("traced", todo.len(), stage);
             return;
         }
         // 1. The sampled vertices: those of `todo`, then the sampled neighbours of the others.
@@ -861,8 +860,8 @@ impl<'a> Baker<'a> {
             });
             finished += vertices.len();
         }
-        state.add_stage("sampled", sampled_count, rays_before, stage);
-        let stage = std::time::Instant::now();
+        state.end_stage("sampled", sampled_count, stage);
+        let stage = state.start_stage();
         // 2. The others: interpolated, or traced.
         let rest: Vec<u32> = todo
             .iter()
@@ -942,9 +941,8 @@ impl<'a> Baker<'a> {
             state.store_many(&ids, cuts);
         }
         let done = own + interpolated;
-        let rays_before = state.rays();
-        state.add_stage("interpolated", interpolated, rays_before, stage);
-        let stage = std::time::Instant::now();
+        state.end_stage("interpolated", interpolated, stage);
+        let stage = state.start_stage();
         progress(done);
         // Where a traced vertex's sampled neighbours all agree on a cell, it takes their
         // visibility (rule 4).
@@ -962,7 +960,7 @@ impl<'a> Baker<'a> {
             })
             .collect();
         self.bake_assisted(&traced, &anchors, false, state, &|k| progress(done + k));
-        state.add_stage("traced", traced.len(), rays_before, stage);
+        state.end_stage("traced", traced.len(), stage);
     }
 
     /// Traces `vertices` into `state`, vertex i taking every visibility cell that all of
@@ -1065,8 +1063,7 @@ impl<'a> Baker<'a> {
         // cuts: each round looks only at edges with an end added by the round before.
         let mut since = 0u32;
         for round in 1..=r.rounds {
-            let stage = std::time::Instant::now();
-            let rays_before = state.rays();
+            let stage = state.start_stage();
             let edges = refine::long_edges(&mesh, min_length);
             let marked: Vec<(u32, u32)> = edges
                 .par_iter()
@@ -1121,12 +1118,7 @@ impl<'a> Baker<'a> {
                 let ids: Vec<usize> = batch.iter().map(|&i| first_new + i as usize).collect();
                 state.store_many(&ids, cuts);
             });
-            state.add_stage(
-                &format!("refinement round {round}"),
-                points.len(),
-                rays_before,
-                stage,
-            );
+            state.end_stage(&format!("refinement round {round}"), points.len(), stage);
             split_total += parents.len();
             parents_all.extend(parents);
             rounds_done += 1;

@@ -216,6 +216,13 @@ pub struct VertexRecord {
     pub interpolated: bool,
 }
 
+/// When a stage started and the rays cast by then ([`PartialBake::start_stage`]).
+#[derive(Debug, Clone, Copy)]
+pub struct StageStart {
+    at: std::time::Instant,
+    rays: u64,
+}
+
 /// The cuts of a bake in progress ([`super::Baker::bake_set`], [`super::Baker::refine`]): packed
 /// cuts, which vertices are baked, and per vertex its [`VertexRecord`].
 #[derive(Debug, Clone, Default)]
@@ -247,18 +254,20 @@ impl PartialBake {
         self.records.iter().map(|r| r.rays).sum()
     }
 
-    /// Counts `vertices` finished, the rays cast since `rays_before` ([`PartialBake::rays`]) and
-    /// the seconds since `since` to stage `name` (a stage met before in this bake adds to it).
-    pub fn add_stage(
-        &mut self,
-        name: &str,
-        vertices: usize,
-        rays_before: u64,
-        since: std::time::Instant,
-    ) {
+    /// Starts timing a stage ([`PartialBake::end_stage`]).
+    pub fn start_stage(&self) -> StageStart {
+        StageStart {
+            at: std::time::Instant::now(),
+            rays: self.rays(),
+        }
+    }
+
+    /// Adds to stage `name` (a stage met before in this bake adds to it) `vertices` finished, the
+    /// rays cast and the seconds since `start`.
+    pub fn end_stage(&mut self, name: &str, vertices: usize, start: StageStart) {
         let (rays, seconds) = (
-            self.rays().saturating_sub(rays_before),
-            since.elapsed().as_secs_f64(),
+            self.rays().saturating_sub(start.rays),
+            start.at.elapsed().as_secs_f64(),
         );
         match self.stages.iter_mut().find(|s| s.stage == name) {
             Some(s) => {
