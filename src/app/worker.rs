@@ -390,6 +390,7 @@ fn serve(
                 }
                 Msg::Cmd(cmd @ Command::Fit { .. }) => {
                     let Command::Fit { doc, .. } = &cmd else {
+                        // Cannot fire: this arm's pattern bound `cmd` to a `Command::Fit`.
                         unreachable!()
                     };
                     let needs_all = doc.views.iter().any(|v| !is_first(&v.view));

@@ -3,7 +3,8 @@
 //! pipeline; library modules import only from earlier stages (the layers below); ARCHITECTURE.md's
 //! code map names every module; the CLI's main.rs stays a thin shell; no test reads an environment
 //! variable that could change what it asserts, and none writes outside the temporary folder; no
-//! comment or document keeps dated history. (`cargo fmt --check` and clippy run in .ci/test.)
+//! comment or document keeps dated history; every place where product code may panic says why it
+//! cannot. (`cargo fmt --check` and clippy run in .ci/test.)
 
 use std::path::{Path, PathBuf};
 
@@ -113,15 +114,88 @@ const LAYERS: &[&[&str]] = &[
     &["app"],
 ];
 
-/// The library's non-test code of one file (what follows `#[cfg(test)]` is left out).
+/// The lines of one file (numbered from 1) less its `#[cfg(test)]` items: the attribute, and the
+/// item after it up to its closing brace (braces counted; a `;` before any `{` ends it).
+fn non_test_lines(text: &str) -> Vec<(usize, &str)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if lines[i].trim_start().starts_with("#[cfg(test)]") {
+            let (mut depth, mut opened) = (0i64, false);
+            i += 1;
+            while i < lines.len() {
+                let l = lines[i];
+                depth += l.matches('{').count() as i64 - l.matches('}').count() as i64;
+                opened |= l.contains('{');
+                i += 1;
+                if (opened && depth <= 0) || (!opened && l.trim_end().ends_with(';')) {
+                    break;
+                }
+            }
+            continue;
+        }
+        out.push((i + 1, lines[i]));
+        i += 1;
+    }
+    out
+}
+
+/// The library's non-test code of one file ([`non_test_lines`]), less its comment lines.
 fn product_code(path: &Path) -> String {
     let text = std::fs::read_to_string(path).unwrap();
-    let end = text.find("#[cfg(test)]").unwrap_or(text.len());
-    text[..end]
-        .lines()
+    non_test_lines(&text)
+        .into_iter()
+        .map(|(_, l)| l)
         .filter(|l| !l.trim_start().starts_with("//"))
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+/// Bad input is an error, never a panic (the README's standards): every place where the product
+/// code (the library, the exporters, the binary) may panic by `unwrap`, `expect`, `unreachable!`
+/// or `panic!` says why it cannot, in a comment on one of the three lines above it that says
+/// "Cannot fail", "Cannot fire" or "Fires only" (and when).
+#[test]
+fn panics_in_product_code_say_why_they_cannot_fire() {
+    let mut files = Vec::new();
+    rust_files(&root().join("src"), &mut files);
+    rust_files(&root().join("exporters/src"), &mut files);
+    assert!(files.len() > 10);
+    let mut unexplained = Vec::new();
+    let mut explained = 0;
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for (n, line) in non_test_lines(&text) {
+            let code = line.split("//").next().unwrap_or("");
+            let panics = [".unwrap()", ".expect(", "unreachable!(", "panic!("]
+                .iter()
+                .any(|p| code.contains(p));
+            if !panics {
+                continue;
+            }
+            let says_why = lines[n.saturating_sub(4)..n - 1].iter().any(|l| {
+                let l = l.trim_start();
+                l.starts_with("//")
+                    && ["Cannot fail", "Cannot fire", "Fires only"]
+                        .iter()
+                        .any(|w| l.contains(w))
+            });
+            if says_why {
+                explained += 1;
+            } else {
+                let rel = f.strip_prefix(root()).unwrap().display().to_string();
+                unexplained.push(format!("{rel}:{n}: {}", line.trim()));
+            }
+        }
+    }
+    assert!(
+        unexplained.is_empty(),
+        "panics in product code with no comment saying why they cannot fire: {unexplained:#?}"
+    );
+    // The check sees the sites it should (a broken scan would pass on nothing).
+    assert!(explained >= 5, "only {explained} explained panic sites found");
 }
 
 #[test]
