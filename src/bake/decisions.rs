@@ -18,7 +18,9 @@
 //!   Measured at probe vertices on the cuts the bake would make there: the irradiance with each
 //!   candidate (11.25° cells; 11.25° cells refined at shadow edges where a light's visibility
 //!   changes; 5.625° cells refined likewise) against the irradiance with a
-//!   ray per direction; the cheaper within 2 % wins (else the closer). Small bright lights (a
+//!   ray per direction. Per kind of probe (vertices, area points) the cheapest within
+//!   [`CELL_TOLERANCE`] (2 %) wins, else the cheapest within [`CELL_NEAR`] (1.2×) of the closest
+//!   one's error; the finer of the two kinds' picks is used. Small bright lights (a
 //!   studio's softboxes, a window) whose visibility a coarse cell gets wrong push it finer; a broad
 //!   sky does not.
 //! - (e) and (f) are made while baking, from the traced cuts: the mesh refinement

@@ -1,7 +1,7 @@
 //! Ray and cone queries against the object's triangles (obvhs; the rays through Intel Embree 3
 //! where the build found it, [`Backend`]).
 //!
-//! Inputs: a world-space [`Mesh`]. Outputs: three queries, all conservative in the same direction:
+//! Inputs: a world-space [`Mesh`]. Outputs: four queries, all conservative in the same direction:
 //! - [`Tracer::occluded`]: does the ray from `origin` along `dir` hit any triangle (any-hit:
 //!   Embree's `rtcOccluded1`, or obvhs's CWBVH)?
 //! - [`Tracer::cone_free`]: is *every* ray from `apex` inside a cone, and above the plane through

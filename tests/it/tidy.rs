@@ -195,7 +195,10 @@ fn panics_in_product_code_say_why_they_cannot_fire() {
         "panics in product code with no comment saying why they cannot fire: {unexplained:#?}"
     );
     // The check sees the sites it should (a broken scan would pass on nothing).
-    assert!(explained >= 5, "only {explained} explained panic sites found");
+    assert!(
+        explained >= 5,
+        "only {explained} explained panic sites found"
+    );
 }
 
 #[test]

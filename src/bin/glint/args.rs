@@ -286,7 +286,7 @@ pub struct FitArgs {
     pub json: bool,
 }
 
-/// Arguments of a subcommand that this build does not have yet: accepted, then refused clearly.
+/// Arguments of `glint study`.
 #[derive(clap::Args)]
 pub struct StudyArgs {
     /// The scene (default: the bundled bunny).
