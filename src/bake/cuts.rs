@@ -1353,6 +1353,7 @@ fn build(ctx: &mut Ctx, k: usize, known: bool, cell: usize, out: &mut Vec<(u32, 
     }
     let known = known_below;
     let start = out.len();
+    prefetch(tree.nodes(), node.right as usize);
     let (wl, vl, dl) = build(ctx, node.left as usize, known, cell, out);
     let mid = out.len();
     let (wr, vr, dr) = build(ctx, node.right as usize, known, cell, out);
@@ -1564,8 +1565,28 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
         // Every cell below taken from the neighbours: nothing to trace.
         return;
     }
+    prefetch(tree.nodes(), node.right as usize);
     collect_cells(ctx, node.left as usize, cell, out);
     collect_cells(ctx, node.right as usize, cell, out);
+}
+
+/// Asks the CPU to load node `k` (both of its cache lines) while the left subtree is walked: in
+/// pre-order the left child is the next node, the right one far away, and the walks wait on their
+/// nodes' loads (`perf`: most of `collect_cells`' samples fall just after one; measured in
+/// docs/benchmarks.md, "Prefetching the right child").
+#[inline(always)]
+fn prefetch(nodes: &[crate::sphere::TreeNode], k: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(node) = nodes.get(k) {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (node as *const crate::sphere::TreeNode).cast::<i8>();
+        // Safety: a prefetch never faults; `p` points into `nodes` (its second line may lie past
+        // the end, hence `wrapping_add`).
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+        }
+    }
 }
 
 /// A quarter `k` (of `cell` leaves) of a cell that boundary refinement marked, at a level from
