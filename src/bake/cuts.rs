@@ -1570,23 +1570,26 @@ fn collect_cells(ctx: &mut Ctx, k: usize, cell: usize, out: &mut Batch) {
     collect_cells(ctx, node.right as usize, cell, out);
 }
 
-/// Asks the CPU to load node `k` (both of its cache lines) while the left subtree is walked: in
-/// pre-order the left child is the next node, the right one far away, and the walks wait on their
-/// nodes' loads (`perf`: most of `collect_cells`' samples fall just after one; measured in
-/// docs/benchmarks.md, "Prefetching the right child").
+/// Asks the CPU to load node `k` (its first two cache lines: the node's 88 bytes unless it starts
+/// late in a line) while the left subtree is walked: in pre-order the left child is the next node,
+/// the right one far away, and the walks wait on their nodes' loads (`perf`: most of
+/// `collect_cells`' samples fall just after one; measured in docs/benchmarks.md, "Prefetching the
+/// right child").
 #[inline(always)]
 fn prefetch(nodes: &[crate::sphere::TreeNode], k: usize) {
+    const { assert!(std::mem::size_of::<crate::sphere::TreeNode>() > 64) };
     #[cfg(target_arch = "x86_64")]
     if let Some(node) = nodes.get(k) {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
         let p = (node as *const crate::sphere::TreeNode).cast::<i8>();
-        // Safety: a prefetch never faults; `p` points into `nodes` (its second line may lie past
-        // the end, hence `wrapping_add`).
+        // Safety: a prefetch never faults, and both addresses lie inside `node`.
         unsafe {
             _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            _mm_prefetch::<_MM_HINT_T0>(p.add(64));
         }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (nodes, k);
 }
 
 /// A quarter `k` (of `cell` leaves) of a cell that boundary refinement marked, at a level from
