@@ -4,7 +4,7 @@
 //! code map names every module; the CLI's main.rs stays a thin shell; no test reads an environment
 //! variable that could change what it asserts, and none writes outside the temporary folder; no
 //! comment or document keeps dated history; every place where product code may panic says why it
-//! cannot. (`cargo fmt --check` and clippy run in .ci/test.)
+//! cannot; README.md stays a user's page of at most 12 KiB (figures go to docs/benchmarks.md). (`cargo fmt --check` and clippy run in .ci/test.)
 
 use std::path::{Path, PathBuf};
 
@@ -152,7 +152,7 @@ fn product_code(path: &Path) -> String {
         .join("\n")
 }
 
-/// Bad input is an error, never a panic (the README's standards): every place where the product
+/// Bad input is an error, never a panic (the project's standards): every place where the product
 /// code (the library, the exporters, the binary) may panic by `unwrap`, `expect`, `unreachable!`
 /// or `panic!` says why it cannot, in a comment on one of the three lines above it that says
 /// "Cannot fail", "Cannot fire" or "Fires only" (and when).
@@ -372,4 +372,16 @@ fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
             out.push(path);
         }
     }
+}
+
+/// README.md is for users: what glint is and how to use it, at most 12 KiB; measurements live in
+/// docs/benchmarks.md.
+#[test]
+fn readme_stays_a_short_users_page() {
+    let bytes = std::fs::metadata(root().join("README.md")).unwrap().len();
+    assert!(bytes > 1000, "README.md is nearly empty ({bytes} bytes)");
+    assert!(
+        bytes <= 12 * 1024,
+        "README.md is {bytes} bytes: keep it under 12 KiB, move figures to docs/benchmarks.md"
+    );
 }
