@@ -63,7 +63,10 @@
 //!    traced — the descent of rules 1–4 with its cone tests, down to the nodes whose cells it
 //!    traces, collecting their rays — and the group's rays go to the tracer in one call; each cut
 //!    then takes them as traced. What the first pass traces and tests depends on no ray's answer,
-//!    so the cut is the same as cutting the vertex alone.
+//!    so the cut is the same as cutting the vertex alone. Where boundary refinement follows, a
+//!    planned vertex's first-pass cut is not built at all: the marking reads only the cells'
+//!    answers, and the pass after the levels is built whole (the cut the memos of rule 6 give;
+//!    built as the first pass where no cell is marked).
 //!
 //! Invariants: the cut's nodes are disjoint and in pre-order (= leaf order); every above-horizon
 //! leaf lies in exactly one; values are in [0, 1]; the result does not depend on the thread that
@@ -838,8 +841,17 @@ pub fn vertex_cut(
     let mut entries = std::mem::take(&mut ctx.scratch.entries);
     entries.clear();
     let top = ctx.cell_leaves;
-    build(&mut ctx, 0, false, top, &mut entries);
-    finish_pass(&mut ctx, &entries);
+    // A planned first pass has its rays and cone answers already, and the marking reads only
+    // those: where boundary refinement follows, the first pass's cut is not built (the pass after
+    // the levels is built whole instead of from its memos, the same cut), unless no cell is
+    // marked; then it is built below as the first pass.
+    let deferred = ctx.planned && ctx.memo;
+    if deferred {
+        ctx.memo = false;
+    } else {
+        build(&mut ctx, 0, false, top, &mut entries);
+        finish_pass(&mut ctx, &entries);
+    }
     // Boundary refinement: cells beside a traced cell of the other visibility are traced again as
     // four cells half as wide, level after level, and the cut is then rebuilt once (cached rays
     // and cone answers are reused) where the first level marked cells; every finer level lies
@@ -851,7 +863,7 @@ pub fn vertex_cut(
             break;
         }
         from = ctx.scratch.traced.len();
-        if !ctx.memo {
+        if !ctx.memo && !deferred {
             // The reference: the whole cut rebuilt after each level, which traces the level.
             ctx.redo = true;
             entries.clear();
@@ -871,6 +883,8 @@ pub fn vertex_cut(
         std::mem::swap(&mut s.first_marked, &mut s.marked);
         ctx.redo = true;
         entries.clear();
+        build(&mut ctx, 0, false, top, &mut entries);
+    } else if deferred {
         build(&mut ctx, 0, false, top, &mut entries);
     }
     ctx.memo = false;
