@@ -59,9 +59,10 @@
 //!    horizon, it enters the cut as it stands (what merging its cells gives). Everything else is
 //!    as above.
 //! 9. Vertices may be cut in groups ([`plan_first_pass`], [`GroupRays`]; [`crate::bake::Baker`]
-//!    groups 16 neighbours where Embree streams): each one's first pass is planned before it is
-//!    traced — the descent of rules 1–4 with its cone tests, down to the nodes whose cells it
-//!    traces, collecting their rays — and the group's rays go to the tracer in one call; each cut
+//!    groups 16 neighbours): each one's first pass is planned before it is traced — the descent
+//!    of rules 1–4 with its cone tests, down to the nodes whose cells it traces, collecting their
+//!    rays — and the group's rays go to the tracer in one call (one stream where Embree streams,
+//!    [`Tracer::occluded_grouped`]); each cut
 //!    then takes them as traced. What the first pass traces and tests depends on no ray's answer,
 //!    so the cut is the same as cutting the vertex alone. Where boundary refinement follows, a
 //!    planned vertex's first-pass cut is not built at all: the marking reads only the cells'
@@ -932,7 +933,7 @@ pub struct Planned {
 }
 
 /// The first-pass rays of a group of neighbouring vertices ([`plan_first_pass`]), traced in one
-/// call ([`Tracer::occluded_each`]).
+/// call ([`Tracer::occluded_grouped`]).
 #[derive(Debug, Clone, Default)]
 pub struct GroupRays {
     /// (node, cell size, scratch key) of each ray's cell.
@@ -960,11 +961,11 @@ impl GroupRays {
         self.occluded.clear();
     }
 
-    /// Traces every ray planned into it.
+    /// Traces every ray planned into it ([`Tracer::occluded_grouped`]).
     pub fn trace(&mut self, tracer: &Tracer) {
         self.occluded.clear();
         self.occluded.resize(self.dirs.len(), false);
-        tracer.occluded_each(&self.origins, &self.dirs, &mut self.occluded);
+        tracer.occluded_grouped(&self.origins, &self.dirs, &mut self.occluded);
     }
 }
 

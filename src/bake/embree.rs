@@ -279,11 +279,6 @@ impl EmbreeTracer {
         self.stream_of(origins.iter().copied().zip(dirs.iter().copied()), out);
     }
 
-    /// Whether this scene is large enough for streams ([`STREAM_TRIANGLES`]).
-    pub fn streams(&self) -> bool {
-        self.stream
-    }
-
     /// The rays (origin, direction) as one stream of single rays (`rtcOccluded1M`, incoherent).
     fn stream_of(&self, rays_in: impl Iterator<Item = (Vec3A, Vec3A)>, out: &mut [bool]) {
         let mut context = RtcIntersectContext {

@@ -87,8 +87,9 @@ const CELL_AREA_PROBES: usize = decisions::CELL_PROBES / 2;
 /// (~8 MiB of them), and its end costs the threads one wait.
 const BATCH: usize = 1 << 14;
 
-/// Points whose first passes' rays go to the tracer in one call where it groups points
-/// ([`Tracer::groups_points`]): consecutive in Morton order, so neighbours.
+/// Points whose first passes are planned together and their rays traced in one call
+/// ([`Tracer::occluded_grouped`]: one stream where the tracer groups points, else each point's
+/// in packets): consecutive in Morton order, so neighbours.
 const GROUP: usize = 16;
 
 /// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of
@@ -235,8 +236,9 @@ pub struct Baker<'a> {
     pub tree: LightTree,
     pub tracer: Tracer,
     /// Whether the first passes of neighbouring vertices are planned and their rays traced in one
-    /// call per 16 ([`cuts::plan_first_pass`]); the same cuts either way. Set where the
-    /// tracer groups points ([`Tracer::groups_points`]); tests set it both ways.
+    /// call per 16 ([`cuts::plan_first_pass`]); the same cuts either way. Set by default: a
+    /// planned first pass is not built where boundary refinement follows ([`cuts`] rule 9), and
+    /// where Embree streams the group's rays go as one stream. Tests set it both ways.
     pub group_points: bool,
     /// Tangents for the shading frames (decision (b)).
     pub tangents: Option<Vec<Vec4>>,
@@ -474,7 +476,7 @@ impl<'a> Baker<'a> {
             decisions,
             set,
             tree,
-            group_points: tracer.groups_points(),
+            group_points: true,
             tracer,
             tangents,
             positions,
@@ -629,7 +631,7 @@ impl<'a> Baker<'a> {
                 || CutScratch::new(self.tree.leaf_count(), self.settings.cut.boundary_levels);
             let cuts: Vec<VertexCut> = if grouped {
                 // Consecutive points in Morton order are neighbours: their first passes' rays go
-                // to the tracer together (`Tracer::groups_points`).
+                // to the tracer together (`Tracer::occluded_grouped`).
                 let groups: Vec<Vec<VertexCut>> = batch
                     .par_chunks(GROUP)
                     .map_init(

@@ -21,7 +21,9 @@
 //!   neighbouring cells are nearly coherent, so a packet visits few more nodes than one of its
 //!   rays alone.
 //! - [`Tracer::occluded_each`]: the same for rays from many origins (the rays of a group of
-//!   neighbouring vertices, [`super::cuts::GroupRays`]), through Embree as one stream.
+//!   neighbouring vertices, [`super::cuts::GroupRays`]), through Embree as one stream;
+//!   [`Tracer::occluded_grouped`], how the bake traces a group: that stream where Embree traces,
+//!   else each vertex's rays (a run of one origin) in packets.
 //!
 //! Invariants: degenerate (zero-area) triangles are kept out of the BVHs (they cannot occlude);
 //! with obvhs both ray queries use the same triangle test (`RtTriangle::intersect`, lane by
@@ -350,17 +352,41 @@ impl Tracer {
         self.occluded_from(origin, dirs, out);
     }
 
-    /// Whether the rays of several neighbouring points are best traced together, in one call of
-    /// [`Tracer::occluded_each`]: where Embree traces a scene large enough for its streams. A
-    /// vertex of the million-triangle bake that takes most cells from its neighbours traces ~9
-    /// rays a call, which Embree's packets trace at a third of the speed of a stream of many
-    /// vertices' rays (docs/benchmarks.md).
+    /// Whether the rays of a group of neighbouring points ([`super::cuts::GroupRays`]) are traced
+    /// as one stream ([`Tracer::occluded_each`]): wherever Embree traces. A vertex of the
+    /// million-triangle bake that takes most cells from its neighbours traces ~9 rays a call,
+    /// which Embree's packets trace at a third of the speed of a stream of many vertices' rays;
+    /// on dragon.glb (30 K triangles) the group's stream and each point's packets bake about
+    /// alike (docs/benchmarks.md). Elsewhere [`Tracer::occluded_grouped`] traces each point's rays
+    /// in packets.
     pub fn groups_points(&self) -> bool {
         #[cfg(embree)]
-        if let Some(e) = self.embree_packets() {
-            return e.streams();
+        if self.embree_packets().is_some() {
+            return true;
         }
         false
+    }
+
+    /// The rays of a group of points ([`super::cuts::GroupRays`]), each point's consecutive:
+    /// [`Tracer::occluded_each`] where the tracer groups points ([`Tracer::groups_points`]), else
+    /// each run of rays from one origin as [`Tracer::occluded_from`] (packets); the same answers.
+    pub fn occluded_grouped(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
+        debug_assert!(origins.len() == dirs.len() && dirs.len() == out.len());
+        if self.groups_points() {
+            self.occluded_each(origins, dirs, out);
+            return;
+        }
+        let mut start = 0;
+        while start < origins.len() {
+            let origin = origins[start];
+            let end = start
+                + origins[start..]
+                    .iter()
+                    .take_while(|&&o| o == origin)
+                    .count();
+            self.occluded_from(origin, &dirs[start..end], &mut out[start..end]);
+            start = end;
+        }
     }
 
     /// `out[i]` = [`Tracer::occluded`] of the ray from `origins[i]` along `dirs[i]`: one Embree
@@ -787,8 +813,13 @@ mod tests {
                 .iter()
                 .flat_map(|(o, ds)| ds.iter().map(move |d| (*o, *d)))
                 .unzip();
-            // Packets of 16 (the rays bench's) and one stream (the bake's groups of vertices).
-            for each in [Tracer::occluded_rays, Tracer::occluded_each] {
+            // Packets of 16 (the rays bench's), one stream, and the bake's groups of vertices (a
+            // stream through Embree, each run of one origin in packets through obvhs).
+            for each in [
+                Tracer::occluded_rays,
+                Tracer::occluded_each,
+                Tracer::occluded_grouped,
+            ] {
                 let mut out = vec![false; dirs.len()];
                 each(&tracer, &origins, &dirs, &mut out);
                 let differ = origins
