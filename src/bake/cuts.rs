@@ -61,7 +61,7 @@
 //! 9. Vertices may be cut in groups ([`plan_first_pass`], [`GroupRays`]; [`crate::bake::Baker`]
 //!    groups 16 neighbours): each one's first pass is planned before it is traced — the descent
 //!    of rules 1–4 with its cone tests, down to the nodes whose cells it traces, collecting their
-//!    rays — and the group's rays go to the tracer in one call (one stream where Embree streams,
+//!    rays — and the group's rays go to the tracer in one call (one stream where Embree traces,
 //!    [`Tracer::occluded_grouped`]); each cut
 //!    then takes them as traced. What the first pass traces and tests depends on no ray's answer,
 //!    so the cut is the same as cutting the vertex alone. Where boundary refinement follows, a
@@ -847,9 +847,7 @@ pub fn vertex_cut(
     // the levels is built whole instead of from its memos, the same cut), unless no cell is
     // marked; then it is built below as the first pass.
     let deferred = ctx.planned && ctx.memo;
-    if deferred {
-        ctx.memo = false;
-    } else {
+    if !deferred {
         build(&mut ctx, 0, false, top, &mut entries);
         finish_pass(&mut ctx, &entries);
     }
@@ -864,7 +862,7 @@ pub fn vertex_cut(
             break;
         }
         from = ctx.scratch.traced.len();
-        if !ctx.memo && !deferred {
+        if !ctx.memo {
             // The reference: the whole cut rebuilt after each level, which traces the level.
             ctx.redo = true;
             entries.clear();
@@ -878,6 +876,10 @@ pub fn vertex_cut(
             }
         }
         cell /= 4;
+    }
+    if deferred {
+        // No first pass left memos to take: the pass after the levels is built whole.
+        ctx.memo = false;
     }
     if refined {
         let s = &mut *ctx.scratch;

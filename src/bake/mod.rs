@@ -88,8 +88,8 @@ const CELL_AREA_PROBES: usize = decisions::CELL_PROBES / 2;
 const BATCH: usize = 1 << 14;
 
 /// Points whose first passes are planned together and their rays traced in one call
-/// ([`Tracer::occluded_grouped`]: one stream where the tracer groups points, else each point's
-/// in packets): consecutive in Morton order, so neighbours.
+/// ([`Tracer::occluded_grouped`]: one stream where Embree traces, else each point's in
+/// packets): consecutive in Morton order, so neighbours.
 const GROUP: usize = 16;
 
 /// Indices of `points` sorted by the Morton code (21 bits per axis over their bounding box) of
@@ -238,7 +238,7 @@ pub struct Baker<'a> {
     /// Whether the first passes of neighbouring vertices are planned and their rays traced in one
     /// call per 16 ([`cuts::plan_first_pass`]); the same cuts either way. Set by default: a
     /// planned first pass is not built where boundary refinement follows ([`cuts`] rule 9), and
-    /// where Embree streams the group's rays go as one stream. Tests set it both ways.
+    /// where Embree traces the group's rays go as one stream. Tests set it both ways.
     pub group_points: bool,
     /// Tangents for the shading frames (decision (b)).
     pub tangents: Option<Vec<Vec4>>,

@@ -356,9 +356,9 @@ impl Tracer {
     /// as one stream ([`Tracer::occluded_each`]): wherever Embree traces. A vertex of the
     /// million-triangle bake that takes most cells from its neighbours traces ~9 rays a call,
     /// which Embree's packets trace at a third of the speed of a stream of many vertices' rays;
-    /// on dragon.glb (30 K triangles) the group's stream and each point's packets bake about
-    /// alike (docs/benchmarks.md). Elsewhere [`Tracer::occluded_grouped`] traces each point's rays
-    /// in packets.
+    /// on dragon.glb (30 K triangles) and the bunny the group's stream baked as fast as each
+    /// point's packets or faster (docs/benchmarks.md, "Planned first passes left unbuilt").
+    /// Elsewhere [`Tracer::occluded_grouped`] traces each point's rays in packets.
     pub fn groups_points(&self) -> bool {
         #[cfg(embree)]
         if self.embree_packets().is_some() {
