@@ -878,7 +878,8 @@ pub fn vertex_cut(
         cell /= 4;
     }
     if deferred {
-        // No first pass left memos to take: the pass after the levels is built whole.
+        // No first pass left memos (and memos are stamped per vertex, so none would be taken):
+        // the pass after the levels is built whole, recording none.
         ctx.memo = false;
     }
     if refined {

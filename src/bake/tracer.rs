@@ -352,28 +352,18 @@ impl Tracer {
         self.occluded_from(origin, dirs, out);
     }
 
-    /// Whether the rays of a group of neighbouring points ([`super::cuts::GroupRays`]) are traced
-    /// as one stream ([`Tracer::occluded_each`]): wherever Embree traces. A vertex of the
-    /// million-triangle bake that takes most cells from its neighbours traces ~9 rays a call,
-    /// which Embree's packets trace at a third of the speed of a stream of many vertices' rays;
-    /// on dragon.glb (30 K triangles) and the bunny the group's stream baked as fast as each
-    /// point's packets or faster (docs/benchmarks.md, "Planned first passes left unbuilt").
-    /// Elsewhere [`Tracer::occluded_grouped`] traces each point's rays in packets.
-    pub fn groups_points(&self) -> bool {
-        #[cfg(embree)]
-        if self.embree_packets().is_some() {
-            return true;
-        }
-        false
-    }
-
-    /// The rays of a group of points ([`super::cuts::GroupRays`]), each point's consecutive:
-    /// [`Tracer::occluded_each`] where the tracer groups points ([`Tracer::groups_points`]), else
-    /// each run of rays from one origin as [`Tracer::occluded_from`] (packets); the same answers.
+    /// The rays of a group of points ([`super::cuts::GroupRays`]), each point's consecutive: where
+    /// Embree traces, one stream ([`Tracer::occluded_each`]), else each run of rays from one origin
+    /// as [`Tracer::occluded_from`] (packets); the same answers. A vertex of the million-triangle
+    /// bake that takes most cells from its neighbours traces ~9 rays a call, which Embree's
+    /// packets trace at a third of the speed of a stream of many vertices' rays; on dragon.glb
+    /// (30 K triangles) and the bunny the group's stream baked as fast as each point's packets or
+    /// faster (docs/benchmarks.md, "Planned first passes left unbuilt").
     pub fn occluded_grouped(&self, origins: &[Vec3A], dirs: &[Vec3A], out: &mut [bool]) {
         debug_assert!(origins.len() == dirs.len() && dirs.len() == out.len());
-        if self.groups_points() {
-            self.occluded_each(origins, dirs, out);
+        #[cfg(embree)]
+        if let Some(e) = self.embree_packets() {
+            e.occluded_each(origins, dirs, out);
             return;
         }
         let mut start = 0;

@@ -828,10 +828,10 @@ fn boundary_passes_from_memos_give_the_cuts_of_whole_rebuilds() {
 
 /// The first passes of 16 neighbouring vertices are planned and their rays traced in one call
 /// (`bake::cuts::plan_first_pass`, `Baker::group_points`, a stream where Embree traces), and a
-/// planned first pass followed by boundary refinement is not built. Against each vertex cut on its own: the
-/// same cuts and rays, on dragon_100k under the courtyard (its sampled vertices take cells from
-/// their neighbours) and on the bunny under the studio (boundary refinement after the planned
-/// pass). The two trace the same rays in different calls, which may answer a ray through a
+/// planned first pass followed by boundary refinement is not built. Against each vertex cut on
+/// its own: the same cuts and rays, on dragon_100k under the courtyard (its sampled vertices take
+/// cells from their neighbours) and on the bunny under the studio (boundary refinement after the
+/// planned pass). The two trace the same rays in different calls, which may answer a ray through a
 /// triangle's edge differently (Embree's packets and streams against single rays: at most 1 in
 /// 20,000, `bake::tracer::tests`); a planning error changes most cuts.
 #[test]
