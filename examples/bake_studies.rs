@@ -3,7 +3,7 @@
 //! `cargo run --release --features studies --example bake_studies -- edge_schemes dragon_100k
 //! interior_1k 400`.
 //!
-//! `edge_schemes MESH MAP [PROBES]`: two ways of refining shadow edges on a cube map of 128
+//! `edge_schemes MESH MAP [PROBES]`: ways of refining shadow edges on a cube map of 128
 //! directions a side, each face on its own (no neighbours across a face's border), from cells of
 //! 16×16 directions (11.25°) down to 2×2 in three levels, over each probe vertex's whole
 //! hemisphere, with no light budget and no cone tests:
@@ -13,7 +13,11 @@
 //! - corners: a ray at each block's corners; a block whose 4 corners disagree is traced at its
 //!   centre and its edges' midpoints (points shared with its neighbours are traced once) and split
 //!   in 4; each direction takes the visibility of the nearest corner of the finest block that
-//!   holds it.
+//!   holds it;
+//! - bisect after 0, 1 or 2 levels: the quarters for that many levels, then, between each pair of
+//!   neighbouring cells of unlike visibility, the segment between their rays bisected down to the
+//!   finest cell, each direction near such a pair taking the visibility of the nearest point
+//!   traced.
 //!
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
@@ -93,55 +97,11 @@ impl Probe<'_> {
 }
 
 /// Visibility per direction of face `f` (−1 where nothing was traced) by the quarter scheme, and
-/// the rays its first pass cast.
+/// the rays its first pass cast: [`bisect`] after every level, which leaves nothing to bisect (no
+/// segment between two of the finest cells is longer than 1.5 of them), and where each direction's
+/// nearest point is its finest cell's centre.
 fn quarters(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
-    let start = p.rays;
-    let mut out = vec![-1i8; R * R];
-    let (mut s, mut m) = (CELL, R / CELL);
-    let mut cells = vec![-1i8; m * m];
-    for cj in 0..m {
-        for ci in 0..m {
-            if p.above(f, ci * s, cj * s, s) {
-                let c = |i: usize| (i * s) as f64 + 0.5 * s as f64;
-                cells[cj * m + ci] = p.visible(direction(f, c(ci), c(cj)));
-            }
-        }
-    }
-    let first = p.rays - start;
-    let fill = |out: &mut [i8], cells: &[i8], m: usize, s: usize| {
-        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
-            let (ci, cj) = (k % m, k / m);
-            for y in cj * s..(cj + 1) * s {
-                out[y * R + ci * s..y * R + (ci + 1) * s].fill(c);
-            }
-        }
-    };
-    fill(&mut out, &cells, m, s);
-    for _ in 0..LEVELS {
-        let mut finer = vec![-1i8; 4 * m * m];
-        let h = s / 2;
-        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
-            let (ci, cj) = ((k % m) as i64, (k / m) as i64);
-            let unlike = (-1..=1)
-                .flat_map(|dj| (-1..=1).map(move |di| (ci + di, cj + dj)))
-                .filter(|&(i, j)| i >= 0 && j >= 0 && i < m as i64 && j < m as i64)
-                .any(|(i, j)| {
-                    let o = cells[j as usize * m + i as usize];
-                    o >= 0 && o != c
-                });
-            if unlike {
-                for q in 0..4 {
-                    let (qi, qj) = (2 * ci as usize + q % 2, 2 * cj as usize + q / 2);
-                    let c = |i: usize| (i * h) as f64 + 0.5 * h as f64;
-                    finer[qj * 2 * m + qi] = p.visible(direction(f, c(qi), c(qj)));
-                }
-            }
-        }
-        (s, m) = (h, 2 * m);
-        fill(&mut out, &finer, m, s);
-        cells = finer;
-    }
-    (out, first)
+    bisect(p, f, LEVELS)
 }
 
 /// Visibility per direction of face `f` by the corner scheme, and the rays its first pass cast.
@@ -191,6 +151,143 @@ fn corners(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
     (out, first.unwrap_or(0))
 }
 
+/// Visibility per direction of face `f` by bisection, and the rays its first pass cast: the quarter
+/// scheme for `q` levels, then, for each pair of 8-neighbours of unlike visibility among the cells
+/// the last of them traced, the segment between their centres bisected (a ray at its midpoint,
+/// keeping the half whose ends disagree) until it is no longer than 1.5 finest cells. A direction
+/// in a cell of such a pair takes the visibility of the nearest point traced in that cell or its 8
+/// neighbours, any other that of the finest cell that holds it.
+fn bisect(p: &mut Probe, f: usize, q: usize) -> (Vec<i8>, u64) {
+    let start = p.rays;
+    let mut out = vec![-1i8; R * R];
+    let (mut s, mut m) = (CELL, R / CELL);
+    let mut cells = vec![-1i8; m * m];
+    for cj in 0..m {
+        for ci in 0..m {
+            if p.above(f, ci * s, cj * s, s) {
+                let c = |i: usize| (i * s) as f64 + 0.5 * s as f64;
+                cells[cj * m + ci] = p.visible(direction(f, c(ci), c(cj)));
+            }
+        }
+    }
+    let first = p.rays - start;
+    let fill = |out: &mut [i8], cells: &[i8], m: usize, s: usize| {
+        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
+            let (ci, cj) = (k % m, k / m);
+            for y in cj * s..(cj + 1) * s {
+                out[y * R + ci * s..y * R + (ci + 1) * s].fill(c);
+            }
+        }
+    };
+    fill(&mut out, &cells, m, s);
+    let unlike = |cells: &[i8], m: usize, ci: i64, cj: i64, c: i8| {
+        (-1..=1)
+            .flat_map(|dj| (-1..=1).map(move |di| (ci + di, cj + dj)))
+            .filter(|&(i, j)| i >= 0 && j >= 0 && i < m as i64 && j < m as i64)
+            .any(|(i, j)| {
+                let o = cells[j as usize * m + i as usize];
+                o >= 0 && o != c
+            })
+    };
+    for _ in 0..q {
+        let mut finer = vec![-1i8; 4 * m * m];
+        let h = s / 2;
+        for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
+            let (ci, cj) = ((k % m) as i64, (k / m) as i64);
+            if unlike(&cells, m, ci, cj, c) {
+                for q in 0..4 {
+                    let (qi, qj) = (2 * ci as usize + q % 2, 2 * cj as usize + q / 2);
+                    let c = |i: usize| (i * h) as f64 + 0.5 * h as f64;
+                    finer[qj * 2 * m + qi] = p.visible(direction(f, c(qi), c(qj)));
+                }
+            }
+        }
+        (s, m) = (h, 2 * m);
+        fill(&mut out, &finer, m, s);
+        cells = finer;
+    }
+    let fine = (CELL >> LEVELS) as f64;
+    let centre = |i: usize| (i * s) as f64 + 0.5 * s as f64;
+    let mut buckets: Vec<Vec<(f64, f64, i8)>> = vec![Vec::new(); m * m];
+    let mut edge = vec![false; m * m];
+    for (k, &c) in cells.iter().enumerate().filter(|(_, c)| **c >= 0) {
+        buckets[k].push((centre(k % m), centre(k / m), c));
+    }
+    let bucket = |x: f64, y: f64| {
+        let i = ((x / s as f64) as usize).min(m - 1);
+        let j = ((y / s as f64) as usize).min(m - 1);
+        j * m + i
+    };
+    for cj in 0..m {
+        for ci in 0..m {
+            let a = cells[cj * m + ci];
+            if a < 0 {
+                continue;
+            }
+            for (di, dj) in [(1i64, 0i64), (-1, 1), (0, 1), (1, 1)] {
+                let (i, j) = (ci as i64 + di, cj as i64 + dj);
+                if i < 0 || i >= m as i64 || j < 0 || j >= m as i64 {
+                    continue;
+                }
+                let b = cells[j as usize * m + i as usize];
+                if b < 0 || b == a {
+                    continue;
+                }
+                edge[cj * m + ci] = true;
+                edge[j as usize * m + i as usize] = true;
+                let (mut lo, mut hi) = (
+                    (centre(ci), centre(cj)),
+                    (centre(i as usize), centre(j as usize)),
+                );
+                while (hi.0 - lo.0).hypot(hi.1 - lo.1) > fine * 1.5 {
+                    let mid = (0.5 * (lo.0 + hi.0), 0.5 * (lo.1 + hi.1));
+                    let v = p.visible(direction(f, mid.0, mid.1));
+                    buckets[bucket(mid.0, mid.1)].push((mid.0, mid.1, v));
+                    if v == a {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+            }
+        }
+    }
+    for y in 0..R {
+        for x in 0..R {
+            let (bi, bj) = ((x / s) as i64, (y / s) as i64);
+            if !edge[bj as usize * m + bi as usize] {
+                continue;
+            }
+            let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+            let mut best = (f64::INFINITY, -1i8);
+            for j in (bj - 1).max(0)..=(bj + 1).min(m as i64 - 1) {
+                for i in (bi - 1).max(0)..=(bi + 1).min(m as i64 - 1) {
+                    for &(qx, qy, v) in &buckets[j as usize * m + i as usize] {
+                        let d = (qx - px).powi(2) + (qy - py).powi(2);
+                        if d < best.0 {
+                            best = (d, v);
+                        }
+                    }
+                }
+            }
+            out[y * R + x] = best.1;
+        }
+    }
+    (out, first)
+}
+
+fn bisect0(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
+    bisect(p, f, 0)
+}
+
+fn bisect1(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
+    bisect(p, f, 1)
+}
+
+fn bisect2(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
+    bisect(p, f, 2)
+}
+
 /// Per scheme: rays, first-pass rays, Σ |error| weighted by geometry and by luminance.
 #[derive(Default, Clone, Copy)]
 struct Tally {
@@ -220,7 +317,7 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
         })
         .collect();
     let n = mesh.positions.len();
-    let per_probe: Vec<([Tally; 2], (f64, f64))> = (0..probes)
+    let per_probe: Vec<([Tally; 5], (f64, f64))> = (0..probes)
         .into_par_iter()
         .map(|i| {
             let v = (2 * i + 1) * n / (2 * probes);
@@ -232,13 +329,19 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
                 normal,
                 rays: 0,
             };
-            let mut t = [Tally::default(); 2];
+            let mut t = [Tally::default(); 5];
             let mut total = (0.0, 0.0);
             for (f, weights) in weights.iter().enumerate() {
                 let mut results = Vec::new();
-                for (s, scheme) in [quarters as fn(&mut Probe, usize) -> _, corners]
-                    .iter()
-                    .enumerate()
+                for (s, scheme) in [
+                    quarters as fn(&mut Probe, usize) -> _,
+                    corners,
+                    bisect0,
+                    bisect1,
+                    bisect2,
+                ]
+                .iter()
+                .enumerate()
                 {
                     let before = p.rays;
                     let (vis, first) = scheme(&mut p, f);
@@ -278,7 +381,16 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
     let total = per_probe
         .iter()
         .fold((0.0, 0.0), |a, (_, w)| (a.0 + w.0, a.1 + w.1));
-    for (s, name) in ["quarters", "corners"].iter().enumerate() {
+    for (s, name) in [
+        "quarters",
+        "corners",
+        "bisect after 0 levels",
+        "bisect after 1 level",
+        "bisect after 2 levels",
+    ]
+    .iter()
+    .enumerate()
+    {
         let sum = per_probe.iter().fold(Tally::default(), |a, (t, _)| Tally {
             rays: a.rays + t[s].rays,
             first: a.first + t[s].first,

@@ -2,7 +2,7 @@
 //! physically valid BRDF whose rendering matches the paint (Iwasaki, Dobashi, Nishita 2009, as
 //! restated in `../shared/spec/method.md`).
 //!
-//! The data flows one way: [`scene`] (glTF import) and [`env`] (environment maps) feed the bake
+//! The data flows one way: [`scene`] (glTF import) and [`env`](mod@env) (environment maps) feed the bake
 //! (visibility cuts over the [`sphere`] light tree), the light sums, the transfer, the fit, the
 //! tabulation, the renderers and the exporters. [`brdf`] holds the reflectance model every stage
 //! shares. Stages are free functions over plain data; IO lives only in the importers and at the CLI

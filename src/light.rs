@@ -26,13 +26,13 @@ pub struct LightSums {
     rotation_rad: f64,
     /// Mean radiance of each leaf (tree order).
     leaf_radiance: Vec<[f64; 3]>,
-    /// prefix_power[i] = Σ_{l<i} Ω_l L_l.
+    /// `prefix_power[i]` = Σ_{l<i} Ω_l L_l.
     prefix_power: Vec<[f64; 3]>,
-    /// prefix_omega[i] = Σ_{l<i} Ω_l.
+    /// `prefix_omega[i]` = Σ_{l<i} Ω_l.
     prefix_omega: Vec<f64>,
-    /// prefix_moment[i] = Σ_{l<i} ∫_l ω dω (exact texel moments).
+    /// `prefix_moment[i]` = Σ_{l<i} ∫_l ω dω (exact texel moments).
     prefix_moment: Vec<DVec3>,
-    /// prefix_radiant_moment[i][c] = Σ_{l<i} L_l,c ∫_l ω dω: per channel, the radiance-weighted
+    /// `prefix_radiant_moment[i][c]` = Σ_{l<i} L_l,c ∫_l ω dω: per channel, the radiance-weighted
     /// moment (its dot with a normal is the cosine-weighted power of leaves above the horizon; its
     /// direction is where the light of a run comes from).
     prefix_radiant_moment: Vec<[DVec3; 3]>,

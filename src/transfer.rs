@@ -9,20 +9,20 @@
 //! normal), T (3 × J per pixel, f32) and E (RGB, f64).
 //!
 //! How a pixel is summed: its triangle's three vertex cuts and a *shading partition* (tree nodes no
-//! wider than a fraction of the lobe's width, finer for grazing views: [`SHADING_TIERS`]) are
+//! wider than a fraction of the lobe's width, finer for grazing views: `SHADING_TIERS`) are
 //! merged into elementary runs of consecutive leaves (cut nodes are leaf ranges in tree order). For
 //! each run the prefix sums give its radiant moment Σ L ∫ ω dω per channel and its power in O(1); V
 //! is the barycentric blend of the three vertices' V_k; ∫ L Ṽ uses the pixel's interpolated normal,
 //! exact (radiant moment · n) when the run lies above the horizon, and where it straddles it split
 //! into sub-ranges above (exact) and the nodes of ≤ 16 leaves the horizon cuts (clipped whole by a
 //! disc model at their mean radiance): for a run that is a whole shading node, from that node's
-//! flat list of such pieces ([`HorizonPiece`]), for a part of one by a walk down the tree
+//! flat list of such pieces (`HorizonPiece`), for a part of one by a walk down the tree
 //! ([`LightTree::split_by_horizon`]). The BRDF is evaluated at the direction the run's light comes
 //! from (its luminance-weighted moment: a sun inside a node is seen where it is). Ring lobes
 //! (isotropic sets) depend on the half-vector's polar angle alone: a run's weight goes into a
 //! per-pixel histogram over t = √(1 − cos θh) and over *filter levels* — the lobes pre-filtered by
 //! the spread of the run's light, v_ω = 1 − |moment|/power, as v_ω/(4 wo·h) in half-vector space
-//! ([`RingFilter`]) — and each lobe is the dot product of the histogram with its tabulated rows
+//! (`RingFilter`) — and each lobe is the dot product of the histogram with its tabulated rows
 //! once per pixel: the same sums as evaluating every (filtered) lobe per run, regrouped. Other lobe
 //! sets are evaluated per run where their support (G > e^-14) can reach the half-vector
 //! ([`LobeGrid`]).
@@ -140,7 +140,7 @@ struct RingFilter {
     res: usize,
     /// 1/(1 + x) of each level: the filtered lobe's peak, in which levels are blended.
     peaks: [f64; FILTER_LEVELS],
-    /// 1 / (peaks[l] − peaks[l + 1]).
+    /// `1 / (peaks[l] − peaks[l + 1])`.
     inv_gaps: [f64; FILTER_LEVELS - 1],
     /// 2λ, to turn a spread into x.
     two_lambda: f64,
@@ -213,7 +213,7 @@ impl RingFilter {
         self.level_at_peak(1.0 / (1.0 + self.two_lambda * spread))
     }
 
-    /// [`Self::level`] from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1]. Without branches on p
+    /// `Self::level` from the filtered lobe's peak p = 1/(1 + x) ∈ (0, 1]. Without branches on p
     /// (a chain of selects over the few levels), so that [`ring_entries`] vectorises.
     #[inline(always)]
     fn level_at_peak(&self, p: f64) -> (usize, f64) {
@@ -628,7 +628,7 @@ pub struct TransferContext<'a> {
 
 impl<'a> TransferContext<'a> {
     /// `shading_angle`: the largest cone half-angle (radians) of a shading node, for every pixel;
-    /// `None` picks per pixel from [`SHADING_TIERS`] by its view cosine for ring lobe sets (nodes
+    /// `None` picks per pixel from `SHADING_TIERS` by its view cosine for ring lobe sets (nodes
     /// of σ where wo·n ≥ 0.6 down to σ/4 at grazing views) and σ/4 for the others (whose lobes are
     /// not pre-filtered).
     pub fn new(

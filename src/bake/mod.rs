@@ -5,9 +5,9 @@
 //! Inputs: an imported [`Scene`], an [`EnvMap`] (only for decision (c): how fine the direction set
 //! must be), [`BakeSettings`]. Outputs: a [`Bake`]: decisions with reasons, the direction-set
 //! resolution, and per vertex a cut (tree nodes in pre-order with their cosine-weighted visible
-//! fraction V_k, see [`cuts`]), plus statistics. [`file`] stores it, versioned and checksummed.
+//! fraction V_k, see [`cuts`]), plus statistics. [`file`](mod@file) stores it, versioned and checksummed.
 //!
-//! Invariants: no IO here (see [`file`]); the result is identical for any thread count (a traced
+//! Invariants: no IO here (see [`file`](mod@file)); the result is identical for any thread count (a traced
 //! vertex's cut depends on that vertex only, an interpolated one's on its sampled neighbours' cuts,
 //! decision (f), [`sparse`]); vertices can be baked in any order and in parts
 //! ([`Baker::bake_set`]), with the same result, so the app can start fitting once the view's

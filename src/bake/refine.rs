@@ -73,7 +73,7 @@ impl Default for RefineSettings {
 /// How a refined mesh is made from the base mesh.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Refinement {
-    /// Vertex V + k is the midpoint of the edge parents[k] (indices < V + k).
+    /// Vertex V + k is the midpoint of the edge `parents[k]` (indices < V + k).
     pub parents: Vec<[u32; 2]>,
     /// The refined mesh's triangles (empty when nothing was split: the base triangles stand).
     pub triangles: Vec<[u32; 3]>,

@@ -291,7 +291,7 @@ pub struct EnergyTable {
 
 impl EnergyTable {
     /// Integrates every (outgoing direction, lobe) pair, each distinct geometry once (see
-    /// [`symmetry_key`]), in parallel.
+    /// `symmetry_key`), in parallel.
     pub fn new(lobes: &LobeSet, outgoing: &[DVec3], quad: &EnergyQuadrature) -> Self {
         let j_count = lobes.len();
         let rule = GaussLegendre::new(quad.radial_points);

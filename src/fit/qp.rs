@@ -41,7 +41,7 @@
 //!
 //! Cold starts. [`QpSolver::solve`] with `None` first guesses the active bounds by a few
 //! primal–dual active-set steps on the bound constraints alone (one Cholesky of the free block
-//! each; [`QpSolver::seed_bounds`]) and warm-starts GI from that guess as above. The plain GI from
+//! each; `QpSolver::seed_bounds`) and warm-starts GI from that guess as above. The plain GI from
 //! the unconstrained minimiser adds the ~100 active bounds of a typical fit one at a time, often
 //! dropping and re-adding them (~300 steps at n = 147); [`QpSolver::solve_unseeded`] keeps that
 //! path. Both end at the same minimiser: GI is exact from any dual-feasible start.
@@ -396,8 +396,8 @@ impl QpSolver {
     /// rest) and write P H Pᵀ = K Kᵀ with K *upper* triangular (the Cholesky factor of the matrix
     /// with the order reversed, σ = reverse π, read backwards). With M = PᵀK: MMᵀ = H, so
     /// J = M⁻ᵀ = PᵀK⁻ᵀ, and Jᵀe_{π(k)} = K⁻¹e_k is column k of the upper-triangular K⁻¹: the first
-    /// |bounds| columns of K⁻¹ are R, with nothing below it. In terms of B = H[σ][σ] = LLᵀ:
-    /// J[row, c] = L⁻¹[n−1−c][pos_σ(row)] and R[i, c] = L⁻¹[n−1−i][n−1−c]. None when a pivot of
+    /// |bounds| columns of K⁻¹ are R, with nothing below it. In terms of `B = H[σ][σ] = LLᵀ`:
+    /// `J[row, c] = L⁻¹[n−1−c][pos_σ(row)]` and `R[i, c] = L⁻¹[n−1−i][n−1−c]`. None when a pivot of
     /// B + δI falls below δ/2 (the same acceptance rule as [`QpSolver::new`]).
     fn bound_factor(&self, bounds: &[usize]) -> Option<(Vec<f64>, Vec<f64>)> {
         let n = self.n;

@@ -169,7 +169,7 @@ impl Image {
 }
 
 /// A linear value as the PNG writer and the app show it: times `exposure`, the ACES filmic curve
-/// ([`aces`]), then sRGB-encoded to 8 bits.
+/// (`aces`), then sRGB-encoded to 8 bits.
 pub fn tone_map(linear: f32, exposure: f32) -> u8 {
     encode_srgb(aces(linear.max(0.0) * exposure))
 }

@@ -3,7 +3,7 @@
 //!
 //! - [`table`]: p(h) on the hemi-octahedral map, with pre-filtered levels.
 //! - [`prt`]: eq. 22 per vertex, then raster interpolation — what every frame costs.
-//! - [`reference`]: exact visibility by ray casting, exact lobes, the environment map itself, MIS.
+//! - [`reference`](mod@reference): exact visibility by ray casting, exact lobes, the environment map itself, MIS.
 //! - [`traced`]: the PRT frame with visibility traced per pixel where a triangle's corners disagree
 //!   (the knob for shadow edges inside triangles).
 //! - [`frame`]: a material on a bake as `glint render` renders it (the PRT frame or the reference).

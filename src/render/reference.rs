@@ -133,7 +133,7 @@ fn radical_inverse(i: u32) -> f64 {
     i.reverse_bits() as f64 * (1.0 / 4_294_967_296.0)
 }
 
-/// Index i with cdf[i] ≤ x < cdf[i + 1] (cdf ascending, cdf[0] = 0), skipping empty bins.
+/// Index i with `cdf[i] ≤ x < cdf[i + 1]` (cdf ascending, `cdf[0] = 0`), skipping empty bins.
 fn search(cdf: &[f64], x: f64) -> usize {
     let n = cdf.len() - 1;
     let i = cdf
