@@ -276,17 +276,17 @@ fn bisect(p: &mut Probe, f: usize, q: usize) -> (Vec<i8>, u64) {
     (out, first)
 }
 
-fn bisect0(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
-    bisect(p, f, 0)
-}
+/// A scheme: visibility per direction of a face, and the rays its first pass cast.
+type Scheme = fn(&mut Probe, usize) -> (Vec<i8>, u64);
 
-fn bisect1(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
-    bisect(p, f, 1)
-}
-
-fn bisect2(p: &mut Probe, f: usize) -> (Vec<i8>, u64) {
-    bisect(p, f, 2)
-}
+/// The schemes `edge_schemes` compares, by the name it prints.
+const SCHEMES: [(&str, Scheme); 5] = [
+    ("quarters", quarters),
+    ("corners", corners),
+    ("bisect after 0 levels", |p, f| bisect(p, f, 0)),
+    ("bisect after 1 level", |p, f| bisect(p, f, 1)),
+    ("bisect after 2 levels", |p, f| bisect(p, f, 2)),
+];
 
 /// Per scheme: rays, first-pass rays, Σ |error| weighted by geometry and by luminance.
 #[derive(Default, Clone, Copy)]
@@ -317,7 +317,7 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
         })
         .collect();
     let n = mesh.positions.len();
-    let per_probe: Vec<([Tally; 5], (f64, f64))> = (0..probes)
+    let per_probe: Vec<([Tally; SCHEMES.len()], (f64, f64))> = (0..probes)
         .into_par_iter()
         .map(|i| {
             let v = (2 * i + 1) * n / (2 * probes);
@@ -329,20 +329,11 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
                 normal,
                 rays: 0,
             };
-            let mut t = [Tally::default(); 5];
+            let mut t = [Tally::default(); SCHEMES.len()];
             let mut total = (0.0, 0.0);
             for (f, weights) in weights.iter().enumerate() {
                 let mut results = Vec::new();
-                for (s, scheme) in [
-                    quarters as fn(&mut Probe, usize) -> _,
-                    corners,
-                    bisect0,
-                    bisect1,
-                    bisect2,
-                ]
-                .iter()
-                .enumerate()
-                {
+                for (s, (_, scheme)) in SCHEMES.iter().enumerate() {
                     let before = p.rays;
                     let (vis, first) = scheme(&mut p, f);
                     t[s].rays += (p.rays - before) as f64;
@@ -381,16 +372,7 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
     let total = per_probe
         .iter()
         .fold((0.0, 0.0), |a, (_, w)| (a.0 + w.0, a.1 + w.1));
-    for (s, name) in [
-        "quarters",
-        "corners",
-        "bisect after 0 levels",
-        "bisect after 1 level",
-        "bisect after 2 levels",
-    ]
-    .iter()
-    .enumerate()
-    {
+    for (s, (name, _)) in SCHEMES.iter().enumerate() {
         let sum = per_probe.iter().fold(Tally::default(), |a, (t, _)| Tally {
             rays: a.rays + t[s].rays,
             first: a.first + t[s].first,
