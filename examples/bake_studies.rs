@@ -22,6 +22,16 @@
 //! Each is compared with a ray per direction, weighted by solid angle × cosine (the geometry
 //! alone) and by that × the map's luminance.
 //!
+//! `flat_cells MESH MAP`: the bake's boundary refinement done on flat per-face grids of square
+//! cells instead of the light tree (the same sizes as `edge_schemes`, each face on its own), with
+//! the bake's light budget β over the vertex's hemisphere (the rotation-worst luminance per
+//! elevation), edge quarters and the first level's other quarters, and the cut merged bottom-up
+//! over each face's quadtree within ε; against the bake's own cuts of the same 400 vertices
+//! (`Baker::point_cuts` at 128 directions a side, one vertex at a time), both on one thread,
+//! median of 3: rays, microseconds per vertex (the flat pipeline's time in the tracer apart), cut
+//! entries, and the error against a ray per direction weighted by solid angle × cosine × the map's
+//! luminance. What a rewrite of the cut's bookkeeping on flat grids could save.
+//!
 //! `budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]] ...]`: whole bakes
 //! (`Baker::new` and `bake_refined`, as `glint bake` makes them) with the visibility cell size in
 //! degrees, the boundary levels, the light budget β, the first level of edge quarters
@@ -390,6 +400,473 @@ fn edge_schemes(mesh: &str, map: &str, probes: usize) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Cell sizes (directions a side) of `flat_cells`' levels: the first pass's and each refinement's.
+const FLAT_SIZES: [usize; LEVELS + 1] = [CELL, CELL / 2, CELL / 4, CELL / 8];
+
+/// Per level and face, what a cell of that level needs, independent of the vertex: its ray
+/// direction (its centre), its four corners' directions (the horizon test), Σ Ω d over its
+/// directions (its cosine mass is that · n where it lies above the horizon) and Σ r Ω d (the light
+/// it gates, r the rotation-worst luminance at its elevation).
+struct FlatCells {
+    centre: Vec<Vec3A>,
+    corners: Vec<[DVec3; 4]>,
+    moment: Vec<DVec3>,
+    light: Vec<DVec3>,
+    omega: Vec<f64>,
+}
+
+fn flat_tables(ring: &dyn Fn(f64) -> f64) -> Vec<[FlatCells; 6]> {
+    FLAT_SIZES
+        .iter()
+        .map(|&s| {
+            let m = R / s;
+            std::array::from_fn(|f| {
+                let mut t = FlatCells {
+                    centre: Vec::with_capacity(m * m),
+                    corners: Vec::with_capacity(m * m),
+                    moment: Vec::with_capacity(m * m),
+                    light: Vec::with_capacity(m * m),
+                    omega: Vec::with_capacity(m * m),
+                };
+                for j in 0..m {
+                    for i in 0..m {
+                        let (x0, y0) = ((i * s) as f64, (j * s) as f64);
+                        let c = direction(f, x0 + 0.5 * s as f64, y0 + 0.5 * s as f64);
+                        t.centre.push(c.as_vec3().into());
+                        let sf = s as f64;
+                        t.corners.push([
+                            direction(f, x0, y0),
+                            direction(f, x0 + sf, y0),
+                            direction(f, x0, y0 + sf),
+                            direction(f, x0 + sf, y0 + sf),
+                        ]);
+                        let (mut mo, mut li, mut om) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+                        for y in j * s..(j + 1) * s {
+                            for x in i * s..(i + 1) * s {
+                                let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                                let d = direction(f, px, py);
+                                let w = solid_angle(px, py);
+                                mo += d * w;
+                                li += d * w * ring(d.y);
+                                om += w;
+                            }
+                        }
+                        t.moment.push(mo);
+                        t.light.push(li);
+                        t.omega.push(om);
+                    }
+                }
+                t
+            })
+        })
+        .collect()
+}
+
+/// One probe's state in `flat_cells`: per level and face, each cell's visibility (−1 unknown) and
+/// whether it was refined, and the rays, recorded or replayed.
+struct Flat<'a> {
+    tables: &'a [[FlatCells; 6]],
+    n: DVec3,
+    vis: Vec<[Vec<i8>; 6]>,
+    refined: Vec<[Vec<bool>; 6]>,
+    /// Per traced cell of the level, its neighbours of the other visibility (bit j for the j-th of
+    /// [`NEIGHBOURS`]).
+    masks: [Vec<u8>; 6],
+}
+
+/// The 8-neighbourhood, in the order of the bits of [`Flat::masks`].
+const NEIGHBOURS: [(i64, i64); 8] = [
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+    (-1, 0),
+    (1, 0),
+    (-1, 1),
+    (0, 1),
+    (1, 1),
+];
+
+impl Flat<'_> {
+    fn above(&self, l: usize, f: usize, k: usize) -> bool {
+        self.tables[l][f].corners[k]
+            .iter()
+            .any(|d| d.dot(self.n) > 0.0)
+    }
+}
+
+/// The flat pipeline for one probe: the first pass, `LEVELS` levels of marking (a traced cell with
+/// an 8-neighbour of the other visibility, on its own face), the light budget β over the vertex's
+/// hemisphere total, edge quarters (the quarters beside a neighbour of the other visibility; at the
+/// first level the others too where one of them disagrees with its cell), then the cut: the
+/// quadtree of each face merged bottom-up while Σ Ω c |V − V̄| ≤ ε Ω. `trace` answers a batch of
+/// directions (occluded or not). Returns the cut's entry count.
+fn flat_probe(
+    st: &mut Flat,
+    beta: f64,
+    total: f64,
+    trace: &mut dyn FnMut(&[Vec3A], &mut Vec<bool>),
+) -> usize {
+    let n = st.n;
+    let mut dirs = Vec::new();
+    let mut keys: Vec<(usize, usize)> = Vec::new();
+    let mut answers = Vec::new();
+    for l in 0..=LEVELS {
+        for f in 0..6 {
+            st.vis[l][f].fill(-1);
+            st.refined[l][f].fill(false);
+        }
+    }
+    // The first pass.
+    let m0 = R / FLAT_SIZES[0];
+    for f in 0..6 {
+        for k in 0..m0 * m0 {
+            if st.above(0, f, k) {
+                dirs.push(st.tables[0][f].centre[k]);
+                keys.push((f, k));
+            }
+        }
+    }
+    trace(&dirs, &mut answers);
+    for (&(f, k), &o) in keys.iter().zip(&answers) {
+        st.vis[0][f][k] = i8::from(!o);
+    }
+    // The cells traced at the current level: the ones the marking looks at.
+    let mut traced = keys.clone();
+    for (l, &size) in FLAT_SIZES.iter().enumerate().take(LEVELS) {
+        let m = R / size;
+        // Marking.
+        let mut marked: Vec<(f64, usize, usize)> = Vec::new();
+        for f in 0..6 {
+            let masks = &mut st.masks[f];
+            masks.clear();
+            masks.resize(m * m, 0);
+        }
+        {
+            for &(f, k) in &traced {
+                let vis = &st.vis[l][f];
+                let masks = &mut st.masks[f];
+                let v = vis[k];
+                let (i, j) = ((k % m) as i64, (k / m) as i64);
+                let mut mask = 0u8;
+                for (b, &(di, dj)) in NEIGHBOURS.iter().enumerate() {
+                    let (a, c) = (i + di, j + dj);
+                    if a < 0 || c < 0 || a >= m as i64 || c >= m as i64 {
+                        continue;
+                    }
+                    let o = vis[(c as usize) * m + a as usize];
+                    if o >= 0 && o != v {
+                        mask |= 1 << b;
+                    }
+                }
+                masks[k] = mask;
+                if mask != 0 {
+                    let g = st.tables[l][f].light[k].dot(n).max(0.0);
+                    marked.push((g, f, k));
+                }
+            }
+        }
+        // The light budget: the marked cells gating the least light stay coarse.
+        marked.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut spent, budget) = (0.0, beta * total);
+        let mut start = 0;
+        while start < marked.len() && spent + marked[start].0 <= budget {
+            spent += marked[start].0;
+            start += 1;
+        }
+        if start == marked.len() {
+            break;
+        }
+        // Edge quarters.
+        let q = 2 * m;
+        for f in 0..6 {
+            st.vis[l + 1][f].fill(-1);
+        }
+        dirs.clear();
+        keys.clear();
+        let mut held: Vec<(usize, usize, usize)> = Vec::new();
+        for &(_, f, k) in &marked[start..] {
+            st.refined[l][f][k] = true;
+            let (i, j) = (k % m, k / m);
+            let mask = st.masks[f][k];
+            for (qi, qj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let qk = (2 * j + qj) * q + 2 * i + qi;
+                if !st.above(l + 1, f, qk) {
+                    continue;
+                }
+                // The parent's neighbours this quarter borders.
+                let (dx, dy) = (2 * qi as i64 - 1, 2 * qj as i64 - 1);
+                let near = NEIGHBOURS.iter().enumerate().any(|(b, &(di, dj))| {
+                    mask >> b & 1 == 1 && (di == 0 || di == dx) && (dj == 0 || dj == dy)
+                });
+                if near {
+                    dirs.push(st.tables[l + 1][f].centre[qk]);
+                    keys.push((f, qk));
+                } else {
+                    st.vis[l + 1][f][qk] = st.vis[l][f][k];
+                    if l == 0 {
+                        held.push((f, k, qk));
+                    }
+                }
+            }
+        }
+        trace(&dirs, &mut answers);
+        for (&(f, qk), &o) in keys.iter().zip(&answers) {
+            st.vis[l + 1][f][qk] = i8::from(!o);
+        }
+        traced.clear();
+        traced.extend_from_slice(&keys);
+        if l == 0 && !held.is_empty() {
+            // The first level's other quarters, where an edge quarter disagrees with its cell.
+            let crossed = |f: usize, k: usize, st: &Flat| {
+                let (i, j) = (k % m, k / m);
+                [(0, 0), (1, 0), (0, 1), (1, 1)].iter().any(|&(qi, qj)| {
+                    let v = st.vis[1][f][(2 * j + qj) * q + 2 * i + qi];
+                    v >= 0 && v != st.vis[0][f][k]
+                })
+            };
+            dirs.clear();
+            keys.clear();
+            for &(f, k, qk) in &held {
+                if crossed(f, k, st) {
+                    dirs.push(st.tables[1][f].centre[qk]);
+                    keys.push((f, qk));
+                }
+            }
+            trace(&dirs, &mut answers);
+            for (&(f, qk), &o) in keys.iter().zip(&answers) {
+                st.vis[1][f][qk] = i8::from(!o);
+            }
+            traced.extend_from_slice(&keys);
+        }
+    }
+    // The cut, face by face: the quadtree from the face down to the finest cells known.
+    let mut entries = 0;
+    for f in 0..6 {
+        entries += flat_merge(st, f, 0, 0, R, 0.02)[3] as usize;
+    }
+    entries
+}
+
+/// (Σ Ω c, Σ Ω c V, error bound, entries, solid angle) of the quadtree node at (x, y) of `s`
+/// directions a side on face `f`, merged where its four children are single entries within ε.
+fn flat_merge(st: &Flat, f: usize, x: usize, y: usize, s: usize, eps: f64) -> [f64; 5] {
+    let n = st.n;
+    if let Some(l) = FLAT_SIZES.iter().position(|&c| c == s) {
+        let m = R / s;
+        let k = (y / s) * m + x / s;
+        let v = st.vis[l][f][k];
+        if l == LEVELS || !st.refined[l][f][k] {
+            let omega = st.tables[l][f].omega[k];
+            if v < 0 {
+                return [0.0, 0.0, 0.0, 0.0, omega];
+            }
+            let w = st.tables[l][f].moment[k].dot(n).max(0.0);
+            if w <= 0.0 {
+                return [0.0, 0.0, 0.0, 0.0, omega];
+            }
+            return [w, w * f64::from(v), 0.0, 1.0, omega];
+        }
+    }
+    let h = s / 2;
+    let mut kids = [[0.0; 5]; 4];
+    for (c, (dx, dy)) in [(0, 0), (h, 0), (0, h), (h, h)].into_iter().enumerate() {
+        kids[c] = flat_merge(st, f, x + dx, y + dy, h, eps);
+    }
+    let sum = |i: usize| kids.iter().map(|k| k[i]).sum::<f64>();
+    let (w, wv, e, omega) = (sum(0), sum(1), sum(3), sum(4));
+    if w <= 0.0 {
+        return [0.0, 0.0, 0.0, 0.0, omega];
+    }
+    let vp = wv / w;
+    let dev: f64 = kids.iter().map(|k| k[2] + (k[1] - k[0] * vp).abs()).sum();
+    let single = kids.iter().all(|k| k[3] <= 1.0);
+    let e = if single && dev <= eps * omega { 1.0 } else { e };
+    [w, wv, dev, e, omega]
+}
+
+/// Each direction's visibility on face `f`: its finest known cell's.
+fn flat_texels(st: &Flat, f: usize) -> Vec<i8> {
+    let mut out = vec![-1i8; R * R];
+    for (l, &s) in FLAT_SIZES.iter().enumerate() {
+        let m = R / s;
+        for (k, &v) in st.vis[l][f].iter().enumerate() {
+            if v < 0 {
+                continue;
+            }
+            let (i, j) = (k % m, k / m);
+            for y in j * s..(j + 1) * s {
+                out[y * R + i * s..y * R + (i + 1) * s].fill(v);
+            }
+        }
+    }
+    out
+}
+
+fn flat_cells(mesh: &str, map: &str) -> anyhow::Result<()> {
+    use glint::bake::{BakeSettings, Baker};
+    let scene = glint::scene::import(&common::assets().join(format!("glb/{mesh}.glb")))?;
+    let env = glint::env::load(&common::assets().join(format!("hdr/{map}.exr")))?;
+    // The bake at the flat grid's resolution, so that both cut the same directions.
+    let settings = BakeSettings {
+        resolution: Some(R),
+        ..BakeSettings::default()
+    };
+    let baker = Baker::new(&scene, &env, settings)?;
+    if baker.decisions.cell_deg != 11.25 || baker.decisions.boundary_levels != LEVELS as u32 {
+        anyhow::bail!(
+            "{mesh} under {map} decides {}° cells and {} levels; flat_cells compares 11.25° and {LEVELS}",
+            baker.decisions.cell_deg,
+            baker.decisions.boundary_levels
+        );
+    }
+    let mut baker = baker;
+    // Each vertex on its own, as the flat pipeline traces them: the 400 are far apart, so grouping
+    // them (as the bake groups neighbours) would only make Embree's streams incoherent.
+    baker.group_points = false;
+    let baker = baker;
+    let beta = baker.settings.cut.boundary_budget;
+    // The rotation-worst luminance per elevation (rotations about +Y), in 512 bins of d.y.
+    const BINS: usize = 512;
+    let mut ring = vec![0.0f64; BINS];
+    let bin = |y: f64| (((y + 1.0) * 0.5 * BINS as f64) as usize).min(BINS - 1);
+    for f in 0..6 {
+        for k in 0..R * R {
+            let d = direction(f, (k % R) as f64 + 0.5, (k / R) as f64 + 0.5);
+            let rgb = env.lookup(d, 0.0);
+            let b = bin(d.y);
+            ring[b] = ring[b].max((rgb[0] + rgb[1] + rgb[2]) / 3.0);
+        }
+    }
+    let ring_at = |y: f64| ring[bin(y)];
+    let tables = flat_tables(&ring_at);
+    let vertices = common::error_sample(scene.mesh.positions.len());
+    let points: Vec<(DVec3, DVec3)> = vertices
+        .iter()
+        .map(|&v| {
+            let (o, n) = baker.ray_origin(v as usize).unwrap();
+            (o - n * baker.ray_offset(), n)
+        })
+        .collect();
+    // The bake's own cuts of the same points, one thread, three times.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let mut bake_times = Vec::new();
+    let mut bake = None;
+    for _ in 0..3 {
+        let t = std::time::Instant::now();
+        bake = Some(pool.install(|| baker.point_cuts(&points)));
+        bake_times.push(t.elapsed().as_secs_f64());
+    }
+    let (cuts, bake_rays) = bake.unwrap();
+    let luminance = common::leaf_luminance(&env, &baker);
+    let (mut wrong, mut total) = (0.0, 0.0);
+    let mut bake_entries = 0usize;
+    for (i, &v) in vertices.iter().enumerate() {
+        let cut: Vec<(u32, f32)> = cuts.cut(i).collect();
+        bake_entries += cut.len();
+        let (e, w) = common::visibility_error(&baker, &luminance, v, &cut);
+        wrong += e;
+        total += w;
+    }
+    // The flat pipeline, one thread, three times (rays timed apart).
+    let tracer = &baker.tracer;
+    let mut st = Flat {
+        tables: &tables,
+        n: DVec3::Y,
+        vis: FLAT_SIZES
+            .iter()
+            .map(|&s| std::array::from_fn(|_| vec![-1i8; (R / s) * (R / s)]))
+            .collect(),
+        refined: FLAT_SIZES
+            .iter()
+            .map(|&s| std::array::from_fn(|_| vec![false; (R / s) * (R / s)]))
+            .collect(),
+        masks: std::array::from_fn(|_| Vec::new()),
+    };
+    let mut flat_times = Vec::new();
+    let mut ray_times = Vec::new();
+    let (mut flat_rays, mut flat_entries, mut fwrong, mut ftotal) = (0u64, 0usize, 0.0, 0.0);
+    for run in 0..3 {
+        let (mut all, mut rays_s) = (0.0, 0.0);
+        for &(p, n) in &points {
+            st.n = n;
+            let origin: Vec3A = (p + n * baker.ray_offset()).as_vec3().into();
+            let total_light: f64 = (0..6)
+                .map(|f| {
+                    tables[LEVELS][f]
+                        .light
+                        .iter()
+                        .map(|l| l.dot(n).max(0.0))
+                        .sum::<f64>()
+                })
+                .sum();
+            let t = std::time::Instant::now();
+            let mut rays = 0u64;
+            let entries = flat_probe(&mut st, beta, total_light, &mut |dirs, out| {
+                let r = std::time::Instant::now();
+                out.clear();
+                out.resize(dirs.len(), false);
+                tracer.occluded_from(origin, dirs, out);
+                rays += dirs.len() as u64;
+                rays_s += r.elapsed().as_secs_f64();
+            });
+            all += t.elapsed().as_secs_f64();
+            if run == 0 {
+                flat_rays += rays;
+                flat_entries += entries;
+                for f in 0..6 {
+                    for (k, &got) in flat_texels(&st, f).iter().enumerate() {
+                        let (x, y) = ((k % R) as f64 + 0.5, (k / R) as f64 + 0.5);
+                        let d = direction(f, x, y);
+                        let cos = d.dot(n);
+                        if cos <= 0.0 {
+                            continue;
+                        }
+                        let rgb = env.lookup(d, 0.0);
+                        let w = solid_angle(x, y) * cos * (rgb[0] + rgb[1] + rgb[2]) / 3.0;
+                        let truth = i8::from(!tracer.occluded(origin, d.as_vec3().into()));
+                        if got != truth {
+                            fwrong += w;
+                        }
+                        ftotal += w;
+                    }
+                }
+            }
+        }
+        flat_times.push(all);
+        ray_times.push(rays_s);
+    }
+    let med = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let np = points.len() as f64;
+    println!(
+        "{} vertices of {mesh} under {map}, one thread, median of 3; {} directions a side, cells of {CELL} a side, {LEVELS} levels, β {beta}",
+        points.len(),
+        baker.set.resolution()
+    );
+    println!(
+        "| cuts | rays per vertex | µs per vertex | of them in the tracer | cut entries per vertex | error, × luminance |"
+    );
+    println!("|---|---|---|---|---|---|");
+    println!(
+        "| the bake's (`Baker::point_cuts`) | {:.0} | {:.0} | | {:.0} | {:.3} % |",
+        bake_rays as f64 / np,
+        1e6 * med(&mut bake_times) / np,
+        bake_entries as f64 / np,
+        100.0 * wrong / total
+    );
+    println!(
+        "| flat, per face | {:.0} | {:.0} | {:.0} | {:.0} | {:.3} % |",
+        flat_rays as f64 / np,
+        1e6 * med(&mut flat_times) / np,
+        1e6 * med(&mut ray_times) / np,
+        flat_entries as f64 / np,
+        100.0 * fwrong / ftotal
+    );
+    Ok(())
+}
+
 /// CPU seconds of this process so far (user and system).
 fn cpu_seconds() -> f64 {
     // SAFETY: getrusage writes the struct it is given; a zeroed rusage is a valid value.
@@ -478,8 +955,9 @@ fn main() -> anyhow::Result<()> {
         ["edge_schemes", mesh, map] => edge_schemes(mesh, map, 400),
         ["edge_schemes", mesh, map, probes] => edge_schemes(mesh, map, probes.parse()?),
         ["budget_levels", mesh, map, ref variants @ ..] => budget_levels(mesh, map, variants),
+        ["flat_cells", mesh, map] => flat_cells(mesh, map),
         _ => anyhow::bail!(
-            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]] ...]"
+            "usage: bake_studies edge_schemes MESH MAP [PROBES] | budget_levels MESH MAP [CELL/LEVELS/BUDGET[/EDGE[/REACH[/RES[/TRACE]]]] ...] | flat_cells MESH MAP"
         ),
     }
 }
