@@ -743,20 +743,24 @@ fn flat_cells(mesh: &str, map: &str) -> anyhow::Result<()> {
     let points: Vec<(DVec3, DVec3)> = vertices
         .iter()
         .map(|&v| {
-            let (o, n) = baker.ray_origin(v as usize).unwrap();
-            (o - n * baker.ray_offset(), n)
+            let (o, n) = baker
+                .ray_origin(v as usize)
+                .ok_or_else(|| anyhow::anyhow!("vertex {v} has no ray origin"))?;
+            Ok((o - n * baker.ray_offset(), n))
         })
-        .collect();
-    // The bake's own cuts of the same points, one thread, three times.
+        .collect::<anyhow::Result<_>>()?;
+    // The bake's own cuts of the same points, one thread, three times (the last one's kept).
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let mut bake_times = Vec::new();
-    let mut bake = None;
-    for _ in 0..3 {
+    let mut cut = || {
         let t = std::time::Instant::now();
-        bake = Some(pool.install(|| baker.point_cuts(&points)));
+        let bake = pool.install(|| baker.point_cuts(&points));
         bake_times.push(t.elapsed().as_secs_f64());
-    }
-    let (cuts, bake_rays) = bake.unwrap();
+        bake
+    };
+    cut();
+    cut();
+    let (cuts, bake_rays) = cut();
     let luminance = common::leaf_luminance(&env, &baker);
     let (mut wrong, mut total) = (0.0, 0.0);
     let mut bake_entries = 0usize;
