@@ -155,8 +155,8 @@ fn energy() -> anyhow::Result<()> {
 /// tangent plane (a 64-per-side direction set's light tree, cells of ≤ 12 leaves, in leaf order as
 /// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
 /// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8, in packets of
-/// 16 and as the bake calls it (one stream per vertex in a scene of at least 65,536 triangles,
-/// `glint::bake::embree::STREAM_TRIANGLES`; packets of 16 below), side by side; then Embree's
+/// 16 and as the bake calls it (one stream per vertex in a scene of at least
+/// `glint::bake::embree::STREAM_TRIANGLES` triangles; packets of 16 below), side by side; then Embree's
 /// packets of 16 against its stream, each vertex's rays in calls of 8 to 128.
 fn rays() -> anyhow::Result<()> {
     use glam::{Vec3, Vec3A};
@@ -278,7 +278,7 @@ fn rays() -> anyhow::Result<()> {
             row("Embree 3, packets of 16", build, secs, hits);
             let (secs, hits) = packets(&tracer, Grouped::Bake, 0);
             row(
-                "Embree 3, as the bake calls it (a stream from 65,536 triangles)",
+                "Embree 3, as the bake calls it (a stream from 8,192 triangles)",
                 build,
                 secs,
                 hits,
