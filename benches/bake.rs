@@ -156,8 +156,9 @@ fn energy() -> anyhow::Result<()> {
 /// the bake visits them), one ray at a time through obvhs's CWBVH (three build qualities) and in
 /// packets of 8 through its BVH2, and through Embree one at a time, in packets of 8, in packets of
 /// 16 and as the bake calls it (one stream per vertex in a scene of at least
-/// `glint::bake::embree::STREAM_TRIANGLES` triangles; packets of 16 below), side by side; then Embree's
-/// packets of 16 against its stream, each vertex's rays in calls of 8 to 128.
+/// `glint::bake::embree::STREAM_TRIANGLES` triangles, which the row's name must match; packets of
+/// 16 below), side by side; then Embree's packets of 16 against its stream, each vertex's rays in
+/// calls of 8 to 128.
 fn rays() -> anyhow::Result<()> {
     use glam::{Vec3, Vec3A};
     use glint::bake::tracer::{BvhBuildParams, PACKET, Tracer};

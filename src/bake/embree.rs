@@ -131,8 +131,8 @@ pub const STREAM_MIN: usize = 32;
 
 /// Scenes of at least this many triangles use Embree's streams ([`STREAM_MIN`]). Its stream
 /// traversal shares each BVH node it fetches among up to 64 rays, which pays once the BVH outgrows
-/// a core's cache. In whole bakes (alternating runs of the same binary with and without, the same
-/// cuts; docs/benchmarks.md, "Streams"): dragon.glb (30 K triangles) baked 6–9 % faster under
+/// a core's cache. In whole bakes (two binaries alternating, with and without streams, the same
+/// cuts; docs/benchmarks.md, "Streams"): dragon.glb (30 K triangles) baked 2–11 % faster under
 /// studio_1k and interior_1k, suzanne (15 K) about 5 % faster under both, while the bunny (3.7 K)
 /// and the teapot (1 K) came out even within the noise; in the rays bench's isolated calls the
 /// bunny's stream traced 0.6× as fast as packets (`cargo bench --bench bake -- rays`).
