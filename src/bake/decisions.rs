@@ -293,25 +293,63 @@ pub fn brdf_resolution(lambda: f64) -> usize {
         .unwrap_or(256)
 }
 
-/// (c): (resolution, reason, probe errors). `lambda` is the half-vector lobe sharpness the BRDF
-/// will use. The result is the finer of what the environment needs (probe lobes) and what the BRDF
-/// needs ([`brdf_resolution`]).
-pub fn decide_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
-    let (n_light, light_reason, errors) = light_resolution(env, lambda);
+/// (c): the resolution, the reason and the probe errors, with the environment's radiance per
+/// texel of the chosen set (unrotated, [`texel_radiance_from`]), which the ring light and (d) read
+/// too. `lambda` is the half-vector lobe sharpness the BRDF will use. The result is the finer of
+/// what the environment needs (probe lobes) and what the BRDF needs ([`brdf_resolution`]).
+pub fn decide_resolution(env: &LightSource, lambda: f64) -> Resolution {
+    let light = light_resolution(env, lambda);
     let n_brdf = brdf_resolution(lambda);
-    if n_brdf > n_light {
+    let (per_side, reason) = if n_brdf > light.per_side {
         let reason = format!(
-            "{n_brdf} per side ({} directions): the BRDF's lobes (σ = {:.4}) need texels at most σ/2 wide; the environment alone would need {n_light} ({light_reason})",
+            "{n_brdf} per side ({} directions): the BRDF's lobes (σ = {:.4}) need texels at most σ/2 wide; the environment alone would need {} ({})",
             6 * n_brdf * n_brdf,
-            srbf::sigma_from_lambda(lambda).unwrap_or(0.0)
+            srbf::sigma_from_lambda(lambda).unwrap_or(0.0),
+            light.per_side,
+            light.reason
         );
-        return (n_brdf, reason, errors);
+        (n_brdf, reason)
+    } else {
+        (light.per_side, light.reason)
+    };
+    // The probes integrated the chosen set, unless the BRDF asks for one finer than the reference.
+    let radiance = light
+        .integrated
+        .into_iter()
+        .find(|(n, _)| *n == per_side)
+        .map(|(_, r)| r);
+    Resolution {
+        per_side,
+        reason,
+        probe_errors: light.probe_errors,
+        radiance,
     }
-    (n_light, light_reason, errors)
+}
+
+/// What decision (c) found.
+#[derive(Debug, Clone)]
+pub struct Resolution {
+    /// Texels per cube-face side.
+    pub per_side: usize,
+    pub reason: String,
+    /// (candidate resolution, worst probe error relative to the brightest probe).
+    pub probe_errors: Vec<(usize, f64)>,
+    /// The environment's radiance per texel of the chosen set at rotation 0, where the probes
+    /// integrated that set (`None`: compute it with [`texel_radiance_from`]).
+    pub radiance: Option<Vec<[f64; 3]>>,
+}
+
+/// The environment's part of (c), as [`light_resolution`] found it.
+struct LightResolution {
+    per_side: usize,
+    reason: String,
+    probe_errors: Vec<(usize, f64)>,
+    /// Every set the probes integrated, with its per-texel radiance.
+    integrated: Vec<(usize, Vec<[f64; 3]>)>,
 }
 
 /// The environment's part of (c).
-fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usize, f64)>) {
+fn light_resolution(env: &LightSource, lambda: f64) -> LightResolution {
     let lambda_wi = lambda / 4.0;
     // Probe axes over the whole sphere (two Fibonacci hemispheres).
     let mut probes = fibonacci_hemisphere(64);
@@ -320,13 +358,14 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
             .into_iter()
             .map(|d| DVec3::new(d.x, d.y, -d.z)),
     );
-    let integrate = |n: usize| -> Vec<f64> {
+    let mut integrated = Vec::new();
+    let mut integrate = |n: usize| -> Vec<f64> {
         let Ok(set) = DirectionSet::cube(n) else {
             return vec![0.0; probes.len()];
         };
         let radiance = texel_radiance_from(env, &set, 0.0);
         let cut = srbf::support_cosine(lambda_wi, 30.0);
-        probes
+        let values = probes
             .par_iter()
             .map(|xi| {
                 set.directions()
@@ -340,7 +379,9 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
                     })
                     .sum()
             })
-            .collect()
+            .collect();
+        integrated.push((n, radiance));
+        values
     };
     let reference = integrate(RESOLUTION_REFERENCE);
     let scale = reference
@@ -363,14 +404,24 @@ fn light_resolution(env: &LightSource, lambda: f64) -> (usize, String, Vec<(usiz
                 worst * 100.0,
                 6 * n * n
             );
-            return (n, reason, errors);
+            return LightResolution {
+                per_side: n,
+                reason,
+                probe_errors: errors,
+                integrated,
+            };
         }
     }
     let reason = format!(
         "this environment keeps energy at high frequency (a sun or sharp features): even 64 per side is {:.2} % off, so the {RESOLUTION_REFERENCE}-per-side set is used",
         errors.last().map_or(0.0, |e| e.1) * 100.0
     );
-    (RESOLUTION_REFERENCE, reason, errors)
+    LightResolution {
+        per_side: RESOLUTION_REFERENCE,
+        reason,
+        probe_errors: errors,
+        integrated,
+    }
 }
 
 /// Candidate visibility cells for (d), cheapest first: (cell size in degrees, boundary levels).
@@ -540,7 +591,8 @@ pub fn cut_irradiance(
 ///
 /// At [`CELL_PROBES`] probes — vertices (ray origins and normals in `origins`) and points spread
 /// by area (`area`, [`area_probes`]), half and half — the irradiance of the environment's
-/// luminance (at rotation 0) is summed over the cut the bake would make there (the settings `cut`:
+/// luminance (at rotation 0; `texel_radiance`, per texel of `set`, [`texel_radiance_from`]) is
+/// summed over the cut the bake would make there (the settings `cut`:
 /// ε, the cap, the cone tests) with a ray per direction (the reference) and with each candidate of
 /// [`CELL_CANDIDATES`], where one ray along a cell's mean direction decides V for the whole cell
 /// and, with boundary levels, cells at a shadow edge are traced again finer. Each group of probes
@@ -550,7 +602,7 @@ pub fn cut_irradiance(
 /// stays. A candidate's reported error is the larger of its two groups'.
 #[allow(clippy::too_many_arguments)] // the light, the directions, both probe sets and the tracer
 pub fn decide_cell(
-    env: &LightSource,
+    texel_radiance: &[[f64; 3]],
     set: &DirectionSet,
     tree: &LightTree,
     origins: &[(DVec3, DVec3)],
@@ -559,7 +611,7 @@ pub fn decide_cell(
     cut: &CutSettings,
     ring: &super::refine::RingLight,
 ) -> CellDecision {
-    let luminance = leaf_grey(tree, &texel_radiance_from(env, set, 0.0));
+    let luminance = leaf_grey(tree, texel_radiance);
     let resolution = set.resolution();
     // The reference (a ray per direction), then the candidates.
     // (Built side by side: at 128 directions a side each table takes ~0.05 s on one core.)

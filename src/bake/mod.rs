@@ -316,17 +316,21 @@ impl<'a> Baker<'a> {
         // other: run side by side, so that the serial parts of each overlap.
         let (light, geometry) = rayon::join(
             || -> Result<_, BakeError> {
-                let (resolution, resolution_reason, probe_errors) = match settings.resolution {
-                    Some(n) => (
-                        n,
-                        format!("set explicitly to {n} per side ({} directions)", 6 * n * n),
-                        Vec::new(),
-                    ),
+                let resolved = match settings.resolution {
+                    Some(n) => decisions::Resolution {
+                        per_side: n,
+                        reason: format!(
+                            "set explicitly to {n} per side ({} directions)",
+                            6 * n * n
+                        ),
+                        probe_errors: Vec::new(),
+                        radiance: None,
+                    },
                     None => decisions::decide_resolution(&source, lambda),
                 };
-                let set = DirectionSet::cube(resolution)?;
+                let set = DirectionSet::cube(resolved.per_side)?;
                 let tree = LightTree::build(&set);
-                Ok((resolution, resolution_reason, probe_errors, set, tree))
+                Ok((resolved, set, tree))
             },
             || {
                 let tracer = Tracer::with_backend(mesh, backend);
@@ -334,7 +338,13 @@ impl<'a> Baker<'a> {
                 (tracer, occlusion)
             },
         );
-        let (resolution, resolution_reason, probe_errors, set, tree) = light?;
+        let (resolved, set, tree) = light?;
+        let decisions::Resolution {
+            per_side: resolution,
+            reason: resolution_reason,
+            probe_errors,
+            radiance: probed_radiance,
+        } = resolved;
         let (tracer, (needs_trace, mut trace_reason)) = geometry;
         let mut settings = settings;
         let trace_visibility = needs_trace || settings.force_trace;
@@ -349,14 +359,23 @@ impl<'a> Baker<'a> {
             ((frame_source, tangents, frame_reason), (vertex_neighbours, sampled, levels)),
         ) = rayon::join(
             || {
+                // The environment's radiance per texel, as (c)'s probes integrated it where they
+                // integrated this set: the ring light and (d) read it (the same values either way).
+                let radiance = if trace_visibility {
+                    probed_radiance
+                        .unwrap_or_else(|| crate::light::texel_radiance_from(&source, &set, 0.0))
+                } else {
+                    Vec::new()
+                };
                 // The rotation-worst light per leaf: what refinement (e), vertex sampling (f) and
                 // the boundary refinement's budget weigh visibility by.
                 let ring = if trace_visibility {
-                    refine::RingLight::new(
-                        &tree,
-                        crate::light::LightSums::from_source(&source, &set, &tree, 0.0)
-                            .leaf_radiance(),
-                    )
+                    let leaf_radiance: Vec<[f64; 3]> = tree
+                        .leaf_texels()
+                        .iter()
+                        .map(|&t| radiance[t as usize])
+                        .collect();
+                    refine::RingLight::new(&tree, &leaf_radiance)
                 } else {
                     refine::RingLight::default()
                 };
@@ -390,7 +409,7 @@ impl<'a> Baker<'a> {
                             .collect();
                         let area = decisions::area_probes(mesh, CELL_AREA_PROBES, offset);
                         let d = decisions::decide_cell(
-                            &source,
+                            &radiance,
                             &set,
                             &tree,
                             &origins,
