@@ -360,24 +360,21 @@ impl<'a> Baker<'a> {
         ) = rayon::join(
             || {
                 // The environment's radiance per texel, as (c)'s probes integrated it where they
-                // integrated this set: the ring light and (d) read it (the same values either way).
-                let radiance = if trace_visibility {
-                    probed_radiance
-                        .unwrap_or_else(|| crate::light::texel_radiance_from(&source, &set, 0.0))
-                } else {
-                    Vec::new()
-                };
-                // The rotation-worst light per leaf: what refinement (e), vertex sampling (f) and
-                // the boundary refinement's budget weigh visibility by.
-                let ring = if trace_visibility {
+                // integrated this set (the same values either way), which (d) reads too; and the
+                // rotation-worst light per leaf made from it: what refinement (e), vertex sampling
+                // (f) and the boundary refinement's budget weigh visibility by.
+                let (radiance, ring) = if trace_visibility {
+                    let radiance = probed_radiance
+                        .unwrap_or_else(|| crate::light::texel_radiance_from(&source, &set, 0.0));
                     let leaf_radiance: Vec<[f64; 3]> = tree
                         .leaf_texels()
                         .iter()
                         .map(|&t| radiance[t as usize])
                         .collect();
-                    refine::RingLight::new(&tree, &leaf_radiance)
+                    let ring = refine::RingLight::new(&tree, &leaf_radiance);
+                    (radiance, ring)
                 } else {
-                    refine::RingLight::default()
+                    (Vec::new(), refine::RingLight::default())
                 };
                 let cell = match settings.cell_deg {
                     Some(deg) => (
