@@ -334,11 +334,7 @@ impl LightSums {
         rotation_rad: f64,
     ) -> Self {
         let (per_texel, inside) = texel_light(source, set, rotation_rad, true);
-        let leaf_radiance: Vec<[f64; 3]> = tree
-            .leaf_texels()
-            .iter()
-            .map(|&t| per_texel[t as usize])
-            .collect();
+        let leaf_radiance = tree.in_leaf_order(&per_texel);
         Self {
             inside: inside.map(std::sync::Arc::new),
             ..Self::from_leaf_radiance(tree, leaf_radiance, rotation_rad)

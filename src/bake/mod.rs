@@ -366,12 +366,7 @@ impl<'a> Baker<'a> {
                 let (radiance, ring) = if trace_visibility {
                     let radiance = probed_radiance
                         .unwrap_or_else(|| crate::light::texel_radiance_from(&source, &set, 0.0));
-                    let leaf_radiance: Vec<[f64; 3]> = tree
-                        .leaf_texels()
-                        .iter()
-                        .map(|&t| radiance[t as usize])
-                        .collect();
-                    let ring = refine::RingLight::new(&tree, &leaf_radiance);
+                    let ring = refine::RingLight::new(&tree, &tree.in_leaf_order(&radiance));
                     (radiance, ring)
                 } else {
                     (Vec::new(), refine::RingLight::default())

@@ -172,6 +172,14 @@ impl LightTree {
         &self.leaf_texel
     }
 
+    /// `per_texel` (indexed by direction-set texel) gathered into tree order, a value per leaf.
+    pub fn in_leaf_order<T: Copy>(&self, per_texel: &[T]) -> Vec<T> {
+        self.leaf_texel
+            .iter()
+            .map(|&t| per_texel[t as usize])
+            .collect()
+    }
+
     /// Leaf directions in tree order.
     pub fn leaf_directions(&self) -> &[DVec3] {
         &self.leaf_directions
