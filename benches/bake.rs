@@ -484,6 +484,18 @@ fn matrix(meshes: &[&str], maps: &[&str], side_by_side: Option<Baseline>) -> any
         Some(Baseline::Unbudgeted) => " bake, 5.625° cells refined at every edge (s; rays) |",
         None => "",
     };
+    // The tracer decides the figures (obvhs's rays are 2–4× slower): say which one this build uses.
+    let backend = Backend::best();
+    println!(
+        "The bakes' rays go through {}{}.",
+        backend.name(),
+        match backend {
+            Backend::Embree => "",
+            Backend::Obvhs =>
+                " (this build did not find Embree: `apt-get install libembree-dev` and rebuild to bench what users with it run)",
+        }
+    );
+    println!();
     println!(
         "| mesh | map |{baseline} bake (s), median of 3 | deciding (s) | stages (s): sampled / interpolated / traced / refinement | imported vertices | baked vertices | rays | rays/s |"
     );
